@@ -1,0 +1,200 @@
+//! `ApiError`: the only place that decides an HTTP status for an error, rendered as
+//! RFC 9457 `application/problem+json`.
+
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+
+/// An error answered to an HTTP client. 4xx variants carry a sentence saying what to fix;
+/// `Internal` carries the cause for the log only (the body stays opaque).
+#[derive(Debug)]
+pub enum ApiError {
+    /// 400: malformed or invalid input.
+    BadRequest(String),
+    /// 401: missing or unknown token.
+    Unauthorized(String),
+    /// 403: the token's role is too weak.
+    Forbidden(String),
+    /// 404: unknown id or route.
+    NotFound(String),
+    /// 405: the route exists but not with this method.
+    MethodNotAllowed(String),
+    /// 406: the requested representation (Accept) is not offered.
+    NotAcceptable(String),
+    /// 409: the request conflicts with stored state.
+    Conflict(String),
+    /// 413: the body is larger than the configured limit.
+    PayloadTooLarge(String),
+    /// 415: unsupported Content-Type.
+    UnsupportedMediaType(String),
+    /// 422: well-formed but semantically unusable input.
+    Unprocessable(String),
+    /// 503: the worker pool is full; retry after the given seconds.
+    Unavailable { detail: String, retry_after_s: u64 },
+    /// 500: a bug or an infrastructure failure; the cause is logged, never shown.
+    Internal(String),
+}
+
+/// Result type of every handler.
+pub type ApiResult<T> = Result<T, ApiError>;
+
+impl ApiError {
+    /// 400 Bad Request with an actionable sentence.
+    pub fn bad_request(detail: impl Into<String>) -> Self {
+        ApiError::BadRequest(detail.into())
+    }
+    /// 401 Unauthorized.
+    pub fn unauthorized(detail: impl Into<String>) -> Self {
+        ApiError::Unauthorized(detail.into())
+    }
+    /// 403 Forbidden.
+    pub fn forbidden(detail: impl Into<String>) -> Self {
+        ApiError::Forbidden(detail.into())
+    }
+    /// 404 Not Found.
+    pub fn not_found(detail: impl Into<String>) -> Self {
+        ApiError::NotFound(detail.into())
+    }
+    /// 406 Not Acceptable.
+    pub fn not_acceptable(detail: impl Into<String>) -> Self {
+        ApiError::NotAcceptable(detail.into())
+    }
+    /// 409 Conflict.
+    pub fn conflict(detail: impl Into<String>) -> Self {
+        ApiError::Conflict(detail.into())
+    }
+    /// 413 Content Too Large.
+    pub fn payload_too_large(detail: impl Into<String>) -> Self {
+        ApiError::PayloadTooLarge(detail.into())
+    }
+    /// 415 Unsupported Media Type.
+    pub fn unsupported_media_type(detail: impl Into<String>) -> Self {
+        ApiError::UnsupportedMediaType(detail.into())
+    }
+    /// 422 Unprocessable Content.
+    pub fn unprocessable(detail: impl Into<String>) -> Self {
+        ApiError::Unprocessable(detail.into())
+    }
+    /// 503 Service Unavailable with `Retry-After: retry_after_s`.
+    pub fn unavailable(detail: impl Into<String>, retry_after_s: u64) -> Self {
+        ApiError::Unavailable {
+            detail: detail.into(),
+            retry_after_s,
+        }
+    }
+    /// 500 Internal Server Error: logs `err`, answers an opaque body.
+    pub fn internal(err: impl std::fmt::Display) -> Self {
+        ApiError::Internal(err.to_string())
+    }
+
+    /// The HTTP status of this error.
+    pub fn status(&self) -> StatusCode {
+        match self {
+            ApiError::BadRequest(_) => StatusCode::BAD_REQUEST,
+            ApiError::Unauthorized(_) => StatusCode::UNAUTHORIZED,
+            ApiError::Forbidden(_) => StatusCode::FORBIDDEN,
+            ApiError::NotFound(_) => StatusCode::NOT_FOUND,
+            ApiError::MethodNotAllowed(_) => StatusCode::METHOD_NOT_ALLOWED,
+            ApiError::NotAcceptable(_) => StatusCode::NOT_ACCEPTABLE,
+            ApiError::Conflict(_) => StatusCode::CONFLICT,
+            ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
+            ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
+            ApiError::Unprocessable(_) => StatusCode::UNPROCESSABLE_ENTITY,
+            ApiError::Unavailable { .. } => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
+        }
+    }
+
+    /// The sentence shown to the client.
+    pub fn detail(&self) -> &str {
+        match self {
+            ApiError::BadRequest(d)
+            | ApiError::Unauthorized(d)
+            | ApiError::Forbidden(d)
+            | ApiError::NotFound(d)
+            | ApiError::MethodNotAllowed(d)
+            | ApiError::NotAcceptable(d)
+            | ApiError::Conflict(d)
+            | ApiError::PayloadTooLarge(d)
+            | ApiError::UnsupportedMediaType(d)
+            | ApiError::Unprocessable(d) => d,
+            ApiError::Unavailable { detail, .. } => detail,
+            ApiError::Internal(_) => {
+                "the server failed to handle this request; the cause is in its log"
+            }
+        }
+    }
+}
+
+/// Problem type slug for a status (the `type` member is `https://truecut.dev/problems/<slug>`).
+fn slug(status: StatusCode) -> &'static str {
+    match status.as_u16() {
+        400 => "bad-request",
+        401 => "unauthorized",
+        403 => "forbidden",
+        404 => "not-found",
+        405 => "method-not-allowed",
+        406 => "not-acceptable",
+        409 => "conflict",
+        413 => "payload-too-large",
+        415 => "unsupported-media-type",
+        422 => "unprocessable",
+        503 => "unavailable",
+        _ => "internal",
+    }
+}
+
+/// A problem+json response for `status` with `detail` (also used to wrap framework rejections).
+pub fn problem_response(status: StatusCode, detail: &str) -> Response {
+    let body = serde_json::json!({
+        "type": format!("https://truecut.dev/problems/{}", slug(status)),
+        "title": status.canonical_reason().unwrap_or("Error"),
+        "status": status.as_u16(),
+        "detail": detail,
+    });
+    let mut resp = (status, body.to_string()).into_response();
+    resp.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/problem+json"),
+    );
+    resp
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        let status = self.status();
+        if let ApiError::Internal(cause) = &self {
+            tracing::error!(%cause, "internal error");
+        }
+        let mut resp = problem_response(status, self.detail());
+        match &self {
+            ApiError::Unavailable { retry_after_s, .. } => {
+                resp.headers_mut()
+                    .insert(header::RETRY_AFTER, HeaderValue::from(*retry_after_s));
+            }
+            ApiError::Unauthorized(_) => {
+                resp.headers_mut().insert(
+                    header::WWW_AUTHENTICATE,
+                    HeaderValue::from_static("Bearer realm=\"truecut\""),
+                );
+            }
+            _ => {}
+        }
+        resp
+    }
+}
+
+impl From<anyhow::Error> for ApiError {
+    /// Store and infrastructure failures are 500s (`{:#}` keeps the cause chain in the log).
+    fn from(err: anyhow::Error) -> Self {
+        ApiError::Internal(format!("{err:#}"))
+    }
+}
+
+impl std::fmt::Display for ApiError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self {
+            ApiError::Internal(cause) => write!(f, "500: {cause}"),
+            other => write!(f, "{}: {}", other.status().as_u16(), other.detail()),
+        }
+    }
+}

@@ -1,0 +1,184 @@
+//! Probe measurements: `POST/GET .../surfaces/{surface}/measurements`,
+//! `GET/DELETE .../measurements/{id}` (JSON or CSV in; JSON or CSV out).
+
+use std::collections::HashMap;
+
+use axum::Router;
+use axum::extract::{Path, Query, Request, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::get;
+use serde_json::{Value, json};
+
+use super::AppState;
+use super::auth::{RequireAdmin, RequireWrite};
+use super::error::{ApiError, ApiResult};
+use super::extract::{ApiJson, check_id, content_type, read_body};
+use super::lookup::{require_measurement, require_surface};
+use super::upload::{ProbeData, deviations_along_normals, parse_csv_upload, parse_json_upload};
+use crate::store::Measurement;
+
+/// Routes of this resource.
+pub fn routes() -> Router<AppState> {
+    Router::new()
+        .route(
+            "/v1/machines/{machine}/surfaces/{surface}/measurements",
+            get(list_measurements).post(post_measurement),
+        )
+        .route(
+            "/v1/machines/{machine}/surfaces/{surface}/measurements/{id}",
+            get(get_measurement).delete(delete_measurement),
+        )
+}
+
+/// True when the client asks for CSV (`Accept: text/csv`).
+pub fn wants_csv(headers: &HeaderMap) -> bool {
+    headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|a| a.contains("text/csv"))
+}
+
+async fn post_measurement(
+    State(state): State<AppState>,
+    _write: RequireWrite,
+    Path((machine, surface)): Path<(String, String)>,
+    Query(query): Query<HashMap<String, String>>,
+    req: Request,
+) -> ApiResult<Response> {
+    check_id("machine", &machine)?;
+    check_id("surface", &surface)?;
+    let is_csv = match content_type(req.headers()).as_deref() {
+        Some("application/json") => false,
+        Some(ct) if ct.starts_with("application/") && ct.ends_with("+json") => false,
+        Some("text/csv" | "text/plain" | "application/csv") => true,
+        _ => {
+            return Err(ApiError::unsupported_media_type(
+                "send Content-Type: application/json ({\"points\"} or {\"deviations\"}) \
+                 or text/csv (header x,y,z or deviation)",
+            ));
+        }
+    };
+    let body = read_body(req).await?;
+    let (data, body_id) = tokio::task::spawn_blocking(move || {
+        if is_csv {
+            parse_csv_upload(&body).map(|d| (d, None))
+        } else {
+            parse_json_upload(&body)
+        }
+    })
+    .await
+    .map_err(ApiError::internal)??;
+    let id = match body_id.or_else(|| query.get("id").cloned()) {
+        Some(id) => {
+            check_id("measurement", &id)?;
+            id
+        }
+        None => uuid::Uuid::now_v7().to_string(),
+    };
+    let surf = require_surface(&state, &machine, &surface).await?;
+    let n = surf.nu * surf.nv;
+    if data.len() != n {
+        return Err(ApiError::bad_request(format!(
+            "{} has {} entries but surface '{surface}' has {n} grid points (nu*nv = {}*{}); \
+             send one per grid point in nominal order (u fastest)",
+            data.field(),
+            data.len(),
+            surf.nu,
+            surf.nv
+        )));
+    }
+    if state
+        .store
+        .get_measurement(&machine, &surface, &id)
+        .await?
+        .is_some()
+    {
+        return Err(ApiError::conflict(format!(
+            "measurement '{id}' already exists on surface '{surface}'; choose another id or DELETE it first"
+        )));
+    }
+    let (deviations, points) = match data {
+        ProbeData::Deviations(d) => (d, None),
+        ProbeData::Points(p) => (
+            deviations_along_normals(&p, &surf.points, &surf.normals),
+            Some(p),
+        ),
+    };
+    let m = Measurement::new(
+        id.clone(),
+        machine.clone(),
+        surface.clone(),
+        deviations,
+        points,
+    );
+    state.store.insert_measurement(&m).await?;
+    Ok((
+        StatusCode::CREATED,
+        [(
+            header::LOCATION,
+            format!("/v1/machines/{machine}/surfaces/{surface}/measurements/{id}"),
+        )],
+        ApiJson(json!({"id": m.id, "n": m.deviations.len(), "max_abs": m.max_abs, "mean_abs": m.mean_abs})),
+    )
+        .into_response())
+}
+
+async fn get_measurement(
+    State(state): State<AppState>,
+    Path((machine, surface, id)): Path<(String, String, String)>,
+    headers: HeaderMap,
+) -> ApiResult<Response> {
+    let m = require_measurement(&state, &machine, &surface, &id).await?;
+    if wants_csv(&headers) {
+        let mut out = String::with_capacity(m.deviations.len() * 48);
+        match &m.points {
+            Some(points) => {
+                out.push_str("x,y,z,deviation\n");
+                for (p, d) in points.iter().zip(&m.deviations) {
+                    out.push_str(&format!("{},{},{},{}\n", p[0], p[1], p[2], d));
+                }
+            }
+            None => {
+                out.push_str("deviation\n");
+                for d in &m.deviations {
+                    out.push_str(&format!("{d}\n"));
+                }
+            }
+        }
+        return Ok(([(header::CONTENT_TYPE, "text/csv; charset=utf-8")], out).into_response());
+    }
+    let mut body = json!({
+        "id": m.id,
+        "n": m.deviations.len(),
+        "max_abs": m.max_abs,
+        "mean_abs": m.mean_abs,
+        "deviations": m.deviations,
+    });
+    if let Some(points) = m.points {
+        body["points"] = json!(points);
+    }
+    Ok(ApiJson(body).into_response())
+}
+
+async fn list_measurements(
+    State(state): State<AppState>,
+    Path((machine, surface)): Path<(String, String)>,
+) -> ApiResult<ApiJson<Value>> {
+    require_surface(&state, &machine, &surface).await?;
+    let list = state.store.list_measurements(&machine, &surface).await?;
+    Ok(ApiJson(json!({ "measurements": list })))
+}
+
+async fn delete_measurement(
+    State(state): State<AppState>,
+    _admin: RequireAdmin,
+    Path((machine, surface, id)): Path<(String, String, String)>,
+) -> ApiResult<StatusCode> {
+    require_measurement(&state, &machine, &surface, &id).await?;
+    state
+        .store
+        .delete_measurement(&machine, &surface, &id)
+        .await?;
+    Ok(StatusCode::NO_CONTENT)
+}

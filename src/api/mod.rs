@@ -1,0 +1,93 @@
+//! HTTP translation: the router, shared state, and one file per resource.
+//!
+//! Each resource file exposes `pub fn routes() -> Router<AppState>` with literal paths
+//! (`.route("/v1/...", get(..))`); [`router`] merges them and adds the cross-cutting layers
+//! (request id, tracing, metrics, body limit, problem+json, auth). The openapi test reads
+//! the `.route("...")` literals of `src/api/*.rs` and compares them with `openapi.yaml`.
+
+pub mod auth;
+pub mod error;
+pub mod extract;
+pub mod health;
+pub mod jobs;
+pub mod lookup;
+pub mod machines;
+pub mod measurements;
+pub mod metrics;
+pub mod middleware;
+pub mod surfaces;
+pub mod upload;
+
+use std::sync::Arc;
+
+use axum::Router;
+use axum::extract::DefaultBodyLimit;
+use axum::http::Request;
+use tower_http::compression::CompressionLayer;
+use tower_http::request_id::{MakeRequestUuid, PropagateRequestIdLayer, SetRequestIdLayer};
+use tower_http::trace::{DefaultOnResponse, TraceLayer};
+
+pub use auth::{RequireAdmin, RequireWrite, Role, Tokens};
+pub use error::{ApiError, ApiResult};
+pub use extract::{ApiJson, check_finite, check_id, check_len, check_points};
+pub use lookup::{require_machine, require_measurement, require_surface};
+
+/// Shared state of every handler. Cheap to clone.
+#[derive(Clone)]
+pub struct AppState {
+    /// Records and model files.
+    pub store: crate::store::Store,
+    /// Worker pool for CPU-heavy work.
+    pub jobs: crate::jobs::JobPool,
+    /// Configured bearer tokens (empty: development mode, everyone is admin).
+    pub tokens: Arc<Tokens>,
+    /// Request counters and latency histograms for `/metrics`.
+    pub metrics: Arc<metrics::Metrics>,
+    /// Largest accepted request body, bytes.
+    pub max_body_bytes: usize,
+}
+
+/// The whole HTTP API: every resource's `routes()` plus the cross-cutting layers.
+pub fn router(state: AppState) -> Router {
+    let max_body = state.max_body_bytes;
+    Router::new()
+        .merge(health::routes())
+        .merge(metrics::routes())
+        .merge(jobs::routes())
+        .merge(machines::routes())
+        .merge(surfaces::routes())
+        .merge(measurements::routes())
+        .fallback(middleware::fallback)
+        // Innermost first: auth sees only routed requests; the problem+json rewrite covers
+        // framework rejections (405, path errors); metrics see the final status.
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            auth::authenticate,
+        ))
+        .layer(axum::middleware::from_fn(middleware::problem_json))
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            metrics::track,
+        ))
+        .layer(axum::middleware::from_fn_with_state(
+            max_body,
+            middleware::content_length_limit,
+        ))
+        .layer(DefaultBodyLimit::max(max_body))
+        .layer(CompressionLayer::new())
+        .layer(PropagateRequestIdLayer::x_request_id())
+        .layer(
+            TraceLayer::new_for_http()
+                .make_span_with(|req: &Request<_>| {
+                    let id = req
+                        .headers()
+                        .get("x-request-id")
+                        .and_then(|v| v.to_str().ok())
+                        .unwrap_or("-");
+                    tracing::info_span!("request", method = %req.method(), uri = %req.uri(), request_id = %id)
+                })
+                .on_response(DefaultOnResponse::new().level(tracing::Level::INFO)),
+        )
+        .layer(SetRequestIdLayer::x_request_id(MakeRequestUuid))
+        .with_state(state)
+}

@@ -1,0 +1,122 @@
+//! Demo data for `truecut serve --demo`: machine `demo` (3-axis, servo models), surface
+//! `saddle` (41×41 grid of z = (x² − y²)/200 mm over ±20 mm) and probe measurement `demo-1`
+//! (a waviness of 20 µm plus 10 µm of material left plus 3 µm of seeded noise).
+
+use anyhow::Result;
+use serde_json::json;
+
+use crate::store::{Measurement, Store, Surface};
+
+/// Grid size of the demo surface along u and v.
+pub const DEMO_N: usize = 41;
+
+/// The demo saddle: points (mm) and outward unit normals, u along x, v along y.
+pub fn saddle() -> (Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let mut points = Vec::with_capacity(DEMO_N * DEMO_N);
+    let mut normals = Vec::with_capacity(DEMO_N * DEMO_N);
+    for iv in 0..DEMO_N {
+        for iu in 0..DEMO_N {
+            let x = -20.0 + 40.0 * iu as f64 / (DEMO_N - 1) as f64;
+            let y = -20.0 + 40.0 * iv as f64 / (DEMO_N - 1) as f64;
+            points.push([x, y, (x * x - y * y) / 200.0]);
+            // Outward normal of z = f(x, y) with material below: (-f_x, -f_y, 1)/|.|.
+            let (fx, fy) = (x / 100.0, -y / 100.0);
+            let len = (fx * fx + fy * fy + 1.0).sqrt();
+            normals.push([-fx / len, -fy / len, 1.0 / len]);
+        }
+    }
+    (points, normals)
+}
+
+/// Deterministic noise in [-1, 1) (xorshift64*), so the demo is the same everywhere.
+fn noise(state: &mut u64) -> f64 {
+    *state ^= *state >> 12;
+    *state ^= *state << 25;
+    *state ^= *state >> 27;
+    let r = state.wrapping_mul(0x2545_F491_4F6C_DD1D);
+    (r >> 11) as f64 / (1u64 << 52) as f64 - 1.0
+}
+
+/// Loads the demo records unless machine `demo` exists. Returns `true` when loaded.
+pub async fn load(store: &Store) -> Result<bool> {
+    if store.get_machine("demo").await?.is_some() {
+        return Ok(false);
+    }
+    let servo = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    store
+        .put_machine(
+            "demo",
+            &json!({
+                "name": "Demo 3-axis vertical mill",
+                "kinematics": "xyz",
+                "axes": {"X": servo, "Y": servo, "Z": servo},
+            }),
+        )
+        .await?;
+    let (points, normals) = saddle();
+    let surface = Surface {
+        machine: "demo".into(),
+        surface: "saddle".into(),
+        nu: DEMO_N,
+        nv: DEMO_N,
+        points: points.clone(),
+        normals,
+        tool_radius: Some(3.0),
+    };
+    store
+        .put_surface(&surface, &json!({"name": "saddle z = (x^2 - y^2)/200"}))
+        .await?;
+    let mut seed = 0x5EED_u64;
+    let deviations: Vec<f64> = points
+        .iter()
+        .map(|p| {
+            let tau = std::f64::consts::TAU;
+            0.010
+                + 0.020 * (tau * p[0] / 40.0).sin() * (tau * p[1] / 40.0).cos()
+                + 0.003 * noise(&mut seed)
+        })
+        .collect();
+    let m = Measurement::new(
+        "demo-1".into(),
+        "demo".into(),
+        "saddle".into(),
+        deviations,
+        None,
+    );
+    store.insert_measurement(&m).await?;
+    Ok(true)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn saddle_normals_are_unit_and_orthogonal_to_the_surface() {
+        let (p, n) = saddle();
+        assert_eq!(p.len(), DEMO_N * DEMO_N);
+        for nk in &n {
+            let len = (nk[0].powi(2) + nk[1].powi(2) + nk[2].powi(2)).sqrt();
+            assert!((len - 1.0).abs() < 1e-12);
+            assert!(nk[2] > 0.0);
+        }
+        // Tangent along u at an interior point is orthogonal to the normal (finite difference).
+        let k = 20 * DEMO_N + 25;
+        let t = [
+            p[k + 1][0] - p[k - 1][0],
+            p[k + 1][1] - p[k - 1][1],
+            p[k + 1][2] - p[k - 1][2],
+        ];
+        let dot = t[0] * n[k][0] + t[1] * n[k][1] + t[2] * n[k][2];
+        assert!(dot.abs() < 1e-9, "{dot}");
+    }
+
+    #[test]
+    fn noise_is_bounded() {
+        let mut s = 1;
+        for _ in 0..10_000 {
+            let v = noise(&mut s);
+            assert!((-1.0..1.0).contains(&v));
+        }
+    }
+}

@@ -1,0 +1,40 @@
+//! Command-line entry points. Each subcommand lives in its own file with
+//! `pub struct Args` (clap) and `pub fn run(args: Args) -> anyhow::Result<()>`.
+
+pub mod demo;
+pub mod serve;
+
+use clap::{Parser, Subcommand};
+
+/// truecut: makes CNC machine tools cut closer to the drawing.
+#[derive(Debug, Parser)]
+#[command(name = "truecut", version, about)]
+pub struct Cli {
+    /// What to do.
+    #[command(subcommand)]
+    pub command: Command,
+}
+
+/// The subcommands.
+#[derive(Debug, Subcommand)]
+pub enum Command {
+    /// Serve the REST API until SIGINT/SIGTERM (`--demo` loads a demo machine and surface).
+    Serve(crate::config::Config),
+}
+
+/// Runs a parsed command line.
+pub fn run(cli: Cli) -> anyhow::Result<()> {
+    match cli.command {
+        Command::Serve(config) => serve::run(config),
+    }
+}
+
+/// Logs to stderr; level from `RUST_LOG` (default `info`, sqlx at `warn`).
+pub fn init_tracing() {
+    let filter = tracing_subscriber::EnvFilter::try_from_default_env()
+        .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,sqlx=warn"));
+    let _ = tracing_subscriber::fmt()
+        .with_env_filter(filter)
+        .with_writer(std::io::stderr)
+        .try_init();
+}

@@ -1,0 +1,111 @@
+//! Starting and stopping the HTTP service: tokens, store, worker pool, router, listener.
+
+use std::net::SocketAddr;
+use std::sync::Arc;
+use std::time::Duration;
+
+use anyhow::{Context, Result, bail};
+use tokio::sync::oneshot;
+use tokio::task::JoinHandle;
+
+use crate::api::{self, AppState, Tokens};
+use crate::config::Config;
+use crate::jobs::JobPool;
+use crate::store::Store;
+
+/// A running service. Stop it with [`Server::stop`] (graceful: in-flight requests finish).
+pub struct Server {
+    addr: SocketAddr,
+    state: AppState,
+    shutdown: Option<oneshot::Sender<()>>,
+    handle: JoinHandle<std::io::Result<()>>,
+    grace: Duration,
+}
+
+/// Loads the tokens a configuration names and enforces the loopback rule:
+/// without tokens only a loopback address may be bound.
+pub fn load_tokens(config: &Config) -> Result<Tokens> {
+    let tokens = match &config.tokens {
+        Some(spec) => Tokens::load(spec)?,
+        None => Tokens::default(),
+    };
+    if tokens.is_empty() && !config.addr.ip().is_loopback() {
+        bail!(
+            "refusing to listen on {}: no tokens are configured, and without tokens every \
+             request is admin. Configure tokens (--tokens FILE or TRUECUT_TOKENS, lines \
+             `TOKEN ROLE` with ROLE read|write|admin) or bind a loopback address such as 127.0.0.1",
+            config.addr
+        );
+    }
+    Ok(tokens)
+}
+
+/// Opens the store, starts the worker pool and serves the API on `config.addr`
+/// (port 0 picks a free port; see [`Server::addr`]).
+pub async fn start(config: &Config) -> Result<Server> {
+    let tokens = load_tokens(config)?;
+    let store = Store::open(&config.data_dir, config.database_url.as_deref()).await?;
+    let jobs = JobPool::start(store.clone(), config.worker_count(), config.queue).await?;
+    let state = AppState {
+        store,
+        jobs,
+        tokens: Arc::new(tokens),
+        metrics: Arc::new(api::metrics::Metrics::default()),
+        max_body_bytes: config.max_body_bytes,
+    };
+    let app = api::router(state.clone());
+    let listener = tokio::net::TcpListener::bind(config.addr)
+        .await
+        .with_context(|| format!("cannot listen on {}", config.addr))?;
+    let addr = listener.local_addr()?;
+    let (tx, rx) = oneshot::channel::<()>();
+    let handle = tokio::spawn(async move {
+        axum::serve(listener, app)
+            .with_graceful_shutdown(async {
+                let _ = rx.await;
+            })
+            .await
+    });
+    tracing::info!(%addr, backend = ?state.store.backend(), data_dir = %config.data_dir.display(), "truecut listening");
+    Ok(Server {
+        addr,
+        state,
+        shutdown: Some(tx),
+        handle,
+        grace: Duration::from_secs(config.shutdown_grace_s),
+    })
+}
+
+impl Server {
+    /// The bound address.
+    pub fn addr(&self) -> SocketAddr {
+        self.addr
+    }
+
+    /// The shared state (store, jobs) of the running service.
+    pub fn state(&self) -> &AppState {
+        &self.state
+    }
+
+    /// Graceful stop: stops accepting, lets in-flight requests finish, gives background
+    /// jobs the grace period, records the rest as failed, closes the database.
+    pub async fn stop(mut self) -> Result<()> {
+        if let Some(tx) = self.shutdown.take() {
+            let _ = tx.send(());
+        }
+        (&mut self.handle)
+            .await
+            .context("server task failed")?
+            .context("server error")?;
+        let cut = self.state.jobs.shutdown(self.grace).await?;
+        if cut > 0 {
+            tracing::warn!(
+                cut,
+                "background jobs did not finish within the grace period; recorded as failed"
+            );
+        }
+        self.state.store.close().await;
+        tracing::info!("truecut stopped");
+        Ok(())
+    }
+}

@@ -1,0 +1,73 @@
+//! Little-endian `f64` BLOB encoding of number arrays (the storage layout of grids and
+//! deviations; 8 bytes a value, no per-row overhead).
+
+use anyhow::{Result, bail};
+
+/// Encodes `xs` as consecutive little-endian IEEE-754 doubles.
+pub fn encode_f64s(xs: &[f64]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(xs.len() * 8);
+    for x in xs {
+        out.extend_from_slice(&x.to_le_bytes());
+    }
+    out
+}
+
+/// Decodes a BLOB written by [`encode_f64s`]; errors if its length is not a multiple of 8.
+pub fn decode_f64s(bytes: &[u8]) -> Result<Vec<f64>> {
+    if bytes.len() % 8 != 0 {
+        bail!(
+            "stored array has {} bytes, not a multiple of 8",
+            bytes.len()
+        );
+    }
+    Ok(bytes
+        .chunks_exact(8)
+        .map(|c| f64::from_le_bytes(c.try_into().expect("chunk of 8")))
+        .collect())
+}
+
+/// Encodes points as `x0 y0 z0 x1 ...` little-endian doubles.
+pub fn encode_points(pts: &[[f64; 3]]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(pts.len() * 24);
+    for p in pts {
+        for c in p {
+            out.extend_from_slice(&c.to_le_bytes());
+        }
+    }
+    out
+}
+
+/// Decodes a BLOB written by [`encode_points`]; errors if its length is not a multiple of 24.
+pub fn decode_points(bytes: &[u8]) -> Result<Vec<[f64; 3]>> {
+    if bytes.len() % 24 != 0 {
+        bail!(
+            "stored point array has {} bytes, not a multiple of 24",
+            bytes.len()
+        );
+    }
+    let flat = decode_f64s(bytes)?;
+    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn round_trip_is_bit_exact() {
+        let xs = [0.0, -0.0, 1.5e-300, -7.25, f64::MAX, 0.1 + 0.2];
+        let back = decode_f64s(&encode_f64s(&xs)).unwrap();
+        assert_eq!(
+            xs.iter().map(|x| x.to_bits()).collect::<Vec<_>>(),
+            back.iter().map(|x| x.to_bits()).collect::<Vec<_>>()
+        );
+        let pts = [[1.0, 2.0, 3.0], [-4.0, 5.5, 1e-9]];
+        assert_eq!(decode_points(&encode_points(&pts)).unwrap(), pts.to_vec());
+    }
+
+    #[test]
+    fn truncated_blob_is_an_error() {
+        assert!(decode_f64s(&[0u8; 12]).is_err());
+        assert!(decode_points(&[0u8; 16]).is_err());
+    }
+}

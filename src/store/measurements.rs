@@ -1,0 +1,176 @@
+//! Probe measurements: deviations (mm, signed along the outward normal) per surface point.
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+use sqlx::Row;
+
+use super::codec::{decode_f64s, decode_points, encode_f64s, encode_points};
+use super::database::{Store, now_ms};
+
+/// A stored probe measurement of a surface: one deviation per nominal grid point.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Measurement {
+    /// Measurement id.
+    pub id: String,
+    /// Machine id.
+    pub machine: String,
+    /// Surface id.
+    pub surface: String,
+    /// `(measured - nominal) · n` per grid point, mm (positive where material was left).
+    pub deviations: Vec<f64>,
+    /// The measured points, when the upload sent points.
+    pub points: Option<Vec<[f64; 3]>>,
+    /// Largest |deviation|, mm.
+    pub max_abs: f64,
+    /// Mean |deviation|, mm.
+    pub mean_abs: f64,
+}
+
+/// One line of a surface's measurement list.
+#[derive(Clone, Debug, Serialize)]
+pub struct MeasurementSummary {
+    /// Measurement id.
+    pub id: String,
+    /// Number of points.
+    pub n: usize,
+    /// Largest |deviation|, mm.
+    pub max_abs: f64,
+    /// Mean |deviation|, mm.
+    pub mean_abs: f64,
+    /// Upload time, Unix milliseconds.
+    pub created_at_ms: i64,
+}
+
+impl Measurement {
+    /// Builds a measurement from deviations, computing `max_abs` and `mean_abs`
+    /// (both 0 for an empty slice).
+    pub fn new(
+        id: String,
+        machine: String,
+        surface: String,
+        deviations: Vec<f64>,
+        points: Option<Vec<[f64; 3]>>,
+    ) -> Measurement {
+        let max_abs = deviations.iter().fold(0.0_f64, |m, d| m.max(d.abs()));
+        let mean_abs = if deviations.is_empty() {
+            0.0
+        } else {
+            deviations.iter().map(|d| d.abs()).sum::<f64>() / deviations.len() as f64
+        };
+        Measurement {
+            id,
+            machine,
+            surface,
+            deviations,
+            points,
+            max_abs,
+            mean_abs,
+        }
+    }
+}
+
+impl Store {
+    /// Stores a new measurement (one row, arrays as BLOBs). Fails if the id exists.
+    pub async fn insert_measurement(&self, m: &Measurement) -> Result<()> {
+        sqlx::query(
+            "INSERT INTO measurements (machine, surface, id, n, max_abs, mean_abs, deviations, \
+             points, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+        )
+        .bind(m.machine.clone())
+        .bind(m.surface.clone())
+        .bind(m.id.clone())
+        .bind(i64::try_from(m.deviations.len())?)
+        .bind(m.max_abs)
+        .bind(m.mean_abs)
+        .bind(encode_f64s(&m.deviations))
+        .bind(m.points.as_deref().map(encode_points))
+        .bind(now_ms())
+        .execute(&self.db)
+        .await
+        .context("cannot store the measurement")?;
+        Ok(())
+    }
+
+    /// The measurement, or `None` if machine, surface or measurement does not exist.
+    pub async fn get_measurement(
+        &self,
+        machine: &str,
+        surface: &str,
+        id: &str,
+    ) -> Result<Option<Measurement>> {
+        let row = sqlx::query(
+            "SELECT max_abs, mean_abs, deviations, points FROM measurements \
+             WHERE machine = $1 AND surface = $2 AND id = $3",
+        )
+        .bind(machine.to_string())
+        .bind(surface.to_string())
+        .bind(id.to_string())
+        .fetch_optional(&self.db)
+        .await?;
+        let Some(row) = row else { return Ok(None) };
+        let deviations: Vec<u8> = row.try_get(2)?;
+        let points: Option<Vec<u8>> = row.try_get(3)?;
+        Ok(Some(Measurement {
+            id: id.to_string(),
+            machine: machine.to_string(),
+            surface: surface.to_string(),
+            max_abs: row.try_get(0)?,
+            mean_abs: row.try_get(1)?,
+            deviations: decode_f64s(&deviations)?,
+            points: points.as_deref().map(decode_points).transpose()?,
+        }))
+    }
+
+    /// The surface's measurements (without arrays), oldest first.
+    pub async fn list_measurements(
+        &self,
+        machine: &str,
+        surface: &str,
+    ) -> Result<Vec<MeasurementSummary>> {
+        let rows = sqlx::query(
+            "SELECT id, n, max_abs, mean_abs, created_at FROM measurements \
+             WHERE machine = $1 AND surface = $2 ORDER BY created_at, id",
+        )
+        .bind(machine.to_string())
+        .bind(surface.to_string())
+        .fetch_all(&self.db)
+        .await?;
+        rows.into_iter()
+            .map(|row| {
+                let n: i64 = row.try_get(1)?;
+                Ok(MeasurementSummary {
+                    id: row.try_get(0)?,
+                    n: usize::try_from(n)?,
+                    max_abs: row.try_get(2)?,
+                    mean_abs: row.try_get(3)?,
+                    created_at_ms: row.try_get(4)?,
+                })
+            })
+            .collect()
+    }
+
+    /// Deletes a measurement and its documents (keys `surface/id` and `surface/id/...`);
+    /// returns `false` if it did not exist.
+    pub async fn delete_measurement(&self, machine: &str, surface: &str, id: &str) -> Result<bool> {
+        let mut tx = self.db.begin().await?;
+        let key = format!("{surface}/{id}");
+        sqlx::query(
+            "DELETE FROM docs WHERE machine = $1 AND (key = $2 OR key LIKE $3 ESCAPE '\\')",
+        )
+        .bind(machine.to_string())
+        .bind(key.clone())
+        .bind(format!("{}/%", key.replace('_', "\\_")))
+        .execute(&mut *tx)
+        .await?;
+        let n =
+            sqlx::query("DELETE FROM measurements WHERE machine = $1 AND surface = $2 AND id = $3")
+                .bind(machine.to_string())
+                .bind(surface.to_string())
+                .bind(id.to_string())
+                .execute(&mut *tx)
+                .await?
+                .rows_affected();
+        tx.commit().await?;
+        Ok(n > 0)
+    }
+}

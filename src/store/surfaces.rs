@@ -1,0 +1,210 @@
+//! Nominal surfaces: a `nu × nv` grid of points and outward unit normals per machine.
+
+use anyhow::{Context, Result};
+use serde::Serialize;
+use sqlx::Row;
+
+use super::codec::{decode_points, encode_points};
+use super::database::{Store, now_ms};
+
+/// A nominal surface grid. Point `k` is `(iu, iv)` with `k = iv*nu + iu` (u runs fastest);
+/// lengths in mm; normals are unit and point out of the material.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Surface {
+    /// Machine id.
+    pub machine: String,
+    /// Surface id.
+    pub surface: String,
+    /// Grid points along u.
+    pub nu: usize,
+    /// Grid points along v.
+    pub nv: usize,
+    /// Nominal points, mm, `nu*nv` of them.
+    pub points: Vec<[f64; 3]>,
+    /// Outward unit normals, `nu*nv` of them.
+    pub normals: Vec<[f64; 3]>,
+    /// Ball-end tool radius in mm, if given.
+    pub tool_radius: Option<f64>,
+}
+
+/// One line of a machine's surface list.
+#[derive(Clone, Debug, Serialize)]
+pub struct SurfaceSummary {
+    /// Surface id.
+    pub id: String,
+    /// Grid points along u.
+    pub nu: usize,
+    /// Grid points along v.
+    pub nv: usize,
+    /// Ball-end tool radius in mm, if given.
+    pub tool_radius: Option<f64>,
+    /// Number of stored measurements.
+    pub measurements: usize,
+}
+
+fn to_usize(x: i64) -> Result<usize> {
+    usize::try_from(x).context("negative count in the database")
+}
+
+fn to_i64(x: usize) -> i64 {
+    i64::try_from(x).unwrap_or(i64::MAX)
+}
+
+impl Store {
+    /// Creates or replaces a surface; `extra` is the rest of the PUT body (kept verbatim).
+    /// Returns `true` when created. The machine must exist (checked by the caller).
+    pub async fn put_surface(&self, s: &Surface, extra: &serde_json::Value) -> Result<bool> {
+        let now = now_ms();
+        let points = encode_points(&s.points);
+        let normals = encode_points(&s.normals);
+        let mut tx = self.db.begin().await?;
+        let updated = sqlx::query(
+            "UPDATE surfaces SET nu = $1, nv = $2, points = $3, normals = $4, tool_radius = $5, \
+             extra = $6, updated_at = $7 WHERE machine = $8 AND id = $9",
+        )
+        .bind(to_i64(s.nu))
+        .bind(to_i64(s.nv))
+        .bind(points.clone())
+        .bind(normals.clone())
+        .bind(s.tool_radius)
+        .bind(extra.to_string())
+        .bind(now)
+        .bind(s.machine.clone())
+        .bind(s.surface.clone())
+        .execute(&mut *tx)
+        .await?
+        .rows_affected();
+        let created = updated == 0;
+        if created {
+            sqlx::query(
+                "INSERT INTO surfaces (machine, id, nu, nv, points, normals, tool_radius, extra, \
+                 created_at, updated_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
+            )
+            .bind(s.machine.clone())
+            .bind(s.surface.clone())
+            .bind(to_i64(s.nu))
+            .bind(to_i64(s.nv))
+            .bind(points)
+            .bind(normals)
+            .bind(s.tool_radius)
+            .bind(extra.to_string())
+            .bind(now)
+            .bind(now)
+            .execute(&mut *tx)
+            .await?;
+        }
+        tx.commit().await?;
+        Ok(created)
+    }
+
+    /// The surface, or `None` if the machine or surface does not exist.
+    pub async fn get_surface(&self, machine: &str, surface: &str) -> Result<Option<Surface>> {
+        let row = sqlx::query(
+            "SELECT nu, nv, points, normals, tool_radius FROM surfaces WHERE machine = $1 AND id = $2",
+        )
+        .bind(machine.to_string())
+        .bind(surface.to_string())
+        .fetch_optional(&self.db)
+        .await?;
+        let Some(row) = row else { return Ok(None) };
+        let points: Vec<u8> = row.try_get(2)?;
+        let normals: Vec<u8> = row.try_get(3)?;
+        Ok(Some(Surface {
+            machine: machine.to_string(),
+            surface: surface.to_string(),
+            nu: to_usize(row.try_get(0)?)?,
+            nv: to_usize(row.try_get(1)?)?,
+            points: decode_points(&points)?,
+            normals: decode_points(&normals)?,
+            tool_radius: row.try_get(4)?,
+        }))
+    }
+
+    /// The extra (non-grid) fields of the surface's PUT body, or `None`.
+    pub async fn get_surface_extra(
+        &self,
+        machine: &str,
+        surface: &str,
+    ) -> Result<Option<serde_json::Value>> {
+        let row = sqlx::query("SELECT extra FROM surfaces WHERE machine = $1 AND id = $2")
+            .bind(machine.to_string())
+            .bind(surface.to_string())
+            .fetch_optional(&self.db)
+            .await?;
+        match row {
+            None => Ok(None),
+            Some(row) => {
+                let text: String = row.try_get(0)?;
+                Ok(Some(serde_json::from_str(&text)?))
+            }
+        }
+    }
+
+    /// The machine's surfaces, ordered by id.
+    pub async fn list_surfaces(&self, machine: &str) -> Result<Vec<SurfaceSummary>> {
+        let rows = sqlx::query(
+            "SELECT s.id, s.nu, s.nv, s.tool_radius, \
+             (SELECT COUNT(*) FROM measurements m WHERE m.machine = s.machine AND m.surface = s.id) \
+             FROM surfaces s WHERE s.machine = $1 ORDER BY s.id",
+        )
+        .bind(machine.to_string())
+        .fetch_all(&self.db)
+        .await?;
+        rows.into_iter()
+            .map(|row| {
+                Ok(SurfaceSummary {
+                    id: row.try_get(0)?,
+                    nu: to_usize(row.try_get(1)?)?,
+                    nv: to_usize(row.try_get(2)?)?,
+                    tool_radius: row.try_get(3)?,
+                    measurements: to_usize(row.try_get(4)?)?,
+                })
+            })
+            .collect()
+    }
+
+    /// Number of measurements stored for a surface.
+    pub async fn count_measurements(&self, machine: &str, surface: &str) -> Result<usize> {
+        let n: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM measurements WHERE machine = $1 AND surface = $2",
+        )
+        .bind(machine.to_string())
+        .bind(surface.to_string())
+        .fetch_one(&self.db)
+        .await?;
+        to_usize(n)
+    }
+
+    /// Deletes a surface with its measurements, its documents (keys `surface` and
+    /// `surface/...`) and its model files; returns `false` if it did not exist.
+    pub async fn delete_surface(&self, machine: &str, surface: &str) -> Result<bool> {
+        let mut tx = self.db.begin().await?;
+        for sql in [
+            "DELETE FROM measurements WHERE machine = $1 AND surface = $2",
+            "DELETE FROM models WHERE machine = $1 AND surface = $2",
+        ] {
+            sqlx::query(sql)
+                .bind(machine.to_string())
+                .bind(surface.to_string())
+                .execute(&mut *tx)
+                .await?;
+        }
+        sqlx::query(
+            "DELETE FROM docs WHERE machine = $1 AND (key = $2 OR key LIKE $3 ESCAPE '\\')",
+        )
+        .bind(machine.to_string())
+        .bind(surface.to_string())
+        .bind(format!("{}/%", surface.replace('_', "\\_")))
+        .execute(&mut *tx)
+        .await?;
+        let n = sqlx::query("DELETE FROM surfaces WHERE machine = $1 AND id = $2")
+            .bind(machine.to_string())
+            .bind(surface.to_string())
+            .execute(&mut *tx)
+            .await?
+            .rows_affected();
+        tx.commit().await?;
+        self.models().remove_surface_files(machine, surface).await?;
+        Ok(n > 0)
+    }
+}
