@@ -12,10 +12,20 @@
 //! - [`config`]: the service configuration (flags and environment, one struct).
 //! - [`server`]: starts the HTTP service (store, jobs, router, listener) and shuts it down gracefully.
 //! - [`cli`]: command-line entry points: `serve` (with `--demo`) and one subcommand per capability.
+//! - [`geometry`]: cubic splines, height surfaces, iso-parametric path sampling, exact ball-end step error (seed 000) and its network features.
+//! - [`nn`]: small dense networks (MLP): z-score, dropout, SGD-momentum/Adam, early stopping, binary model format (seeds 000, 001, 004).
+//! - [`volumetric`]: volumetric error maps (seeds 001, 004): trilinear table, 3-8-3 network, ISO 230-1 rigid-body model, hybrid, auto by CV, compensation tables.
+//! - [`motion`]: contour error from G-code (seed 003): G-code reader, RTCP interpolation, kinematics, servo cascade, contour error.
+//! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check.
 
 pub mod api;
 pub mod cli;
 pub mod config;
+pub mod gap;
+pub mod geometry;
 pub mod jobs;
+pub mod motion;
+pub mod nn;
 pub mod server;
 pub mod store;
+pub mod volumetric;

@@ -5,6 +5,7 @@
 
 /// Defines `mod NAME { sqlite, postgres }` tests running `async fn NAME(app: TestApp)` on
 /// both backends (the PostgreSQL one prints SKIPPED when TRUECUT_TEST_PG is unset).
+/// `on_both_backends!(name, |c| c.queue = 0)` adjusts the configuration first.
 /// Use with `#[macro_use] mod helpers;`.
 macro_rules! on_both_backends {
     ($name:ident) => {
@@ -16,6 +17,20 @@ macro_rules! on_both_backends {
             #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
             async fn postgres() {
                 if let Some(app) = crate::helpers::spawn_app_pg().await {
+                    super::$name(app).await;
+                }
+            }
+        }
+    };
+    ($name:ident, $configure:expr) => {
+        mod $name {
+            #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+            async fn sqlite() {
+                super::$name(crate::helpers::spawn_app_with($configure).await).await;
+            }
+            #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+            async fn postgres() {
+                if let Some(app) = crate::helpers::spawn_app_pg_with($configure).await {
                     super::$name(app).await;
                 }
             }

@@ -35,16 +35,35 @@ async fn auth_matrix(app: TestApp) {
     assert_eq!(app.get("/v1/machines/m").await.status(), 200);
     assert_eq!(app.get("/v1/machines/m/surfaces/s").await.status(), 200);
     assert_problem(app.post_json(up, &devs).await, 403, &["'write'", "'read'"]).await;
-    assert_problem(app.put_json("/v1/machines/m2", &machine_xyz()).await, 403, &["write"]).await;
+    assert_problem(
+        app.put_json("/v1/machines/m2", &machine_xyz()).await,
+        403,
+        &["write"],
+    )
+    .await;
     assert_problem(app.delete("/v1/machines/m").await, 403, &["admin"]).await;
 
     // write: uploads, but no definitions or deletes.
     app.token = Some("w-tok".into());
     let r = app.post_json(up, &devs).await;
     assert_eq!(r.status(), 201);
-    let id = r.json::<Value>().await.unwrap()["id"].as_str().unwrap().to_string();
-    assert_problem(app.put_json("/v1/machines/m2", &machine_xyz()).await, 403, &["'admin'", "'write'"]).await;
-    assert_problem(app.put_json("/v1/machines/m/surfaces/s2", &flat_surface(2, 2)).await, 403, &["admin"]).await;
+    let id = r.json::<Value>().await.unwrap()["id"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    assert_problem(
+        app.put_json("/v1/machines/m2", &machine_xyz()).await,
+        403,
+        &["'admin'", "'write'"],
+    )
+    .await;
+    assert_problem(
+        app.put_json("/v1/machines/m/surfaces/s2", &flat_surface(2, 2))
+            .await,
+        403,
+        &["admin"],
+    )
+    .await;
     assert_problem(app.delete(&format!("{up}/{id}")).await, 403, &["admin"]).await;
 
     // admin: everything; lower-case scheme accepted.
@@ -57,7 +76,12 @@ async fn auth_matrix(app: TestApp) {
         .unwrap();
     assert_eq!(r.status(), 204);
     app.token = Some("a-tok".into());
-    assert_eq!(app.put_json("/v1/machines/m2", &machine_xyz()).await.status(), 201);
+    assert_eq!(
+        app.put_json("/v1/machines/m2", &machine_xyz())
+            .await
+            .status(),
+        201
+    );
     assert_eq!(app.delete("/v1/machines/m2").await.status(), 204);
 }
 
@@ -72,7 +96,9 @@ async fn auth_matrix_with_tokens_file() {
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn auth_matrix_with_inline_tokens_on_postgres() {
-    if let Some(app) = spawn_app_pg_with(|c| c.tokens = Some("r-tok read, w-tok write, a-tok:admin".into())).await {
+    if let Some(app) =
+        spawn_app_pg_with(|c| c.tokens = Some("r-tok read, w-tok write, a-tok:admin".into())).await
+    {
         auth_matrix(app).await;
     }
 }
@@ -82,10 +108,21 @@ async fn bad_token_settings_are_refused() {
     let dir = tempfile::tempdir().unwrap();
     let mut c = truecut::config::Config::new("127.0.0.1:0".parse().unwrap(), dir.path().into());
     c.tokens = Some("abc superuser".into());
-    let err = truecut::server::start(&c).await.err().expect("must refuse").to_string();
-    assert!(err.contains("superuser") && err.contains("read, write, admin"), "{err}");
+    let err = truecut::server::start(&c)
+        .await
+        .err()
+        .expect("must refuse")
+        .to_string();
+    assert!(
+        err.contains("superuser") && err.contains("read, write, admin"),
+        "{err}"
+    );
     c.tokens = Some("lonely".into());
-    let err = truecut::server::start(&c).await.err().expect("must refuse").to_string();
+    let err = truecut::server::start(&c)
+        .await
+        .err()
+        .expect("must refuse")
+        .to_string();
     assert!(err.contains("TOKEN ROLE"), "{err}");
 }
 
@@ -93,22 +130,45 @@ async fn bad_token_settings_are_refused() {
 async fn non_loopback_without_tokens_is_refused_and_allowed_with_tokens() {
     let dir = tempfile::tempdir().unwrap();
     let mut c = truecut::config::Config::new("0.0.0.0:0".parse().unwrap(), dir.path().into());
-    let err = truecut::server::start(&c).await.err().expect("must refuse").to_string();
-    assert!(err.contains("refusing to listen on 0.0.0.0:0") && err.contains("--tokens"), "{err}");
+    let err = truecut::server::start(&c)
+        .await
+        .err()
+        .expect("must refuse")
+        .to_string();
+    assert!(
+        err.contains("refusing to listen on 0.0.0.0:0") && err.contains("--tokens"),
+        "{err}"
+    );
     c.tokens = Some("a-tok admin".into());
-    let server = truecut::server::start(&c).await.expect("with tokens any address is fine");
+    let server = truecut::server::start(&c)
+        .await
+        .expect("with tokens any address is fine");
     server.stop().await.unwrap();
 }
 
 async fn health_metrics_request_id(app: TestApp) {
     let r = app.get("/healthz").await;
     assert_eq!(r.status(), 200);
-    assert!(r.headers().contains_key("x-request-id"), "request id is echoed");
+    assert!(
+        r.headers().contains_key("x-request-id"),
+        "request id is echoed"
+    );
     assert_eq!(r.json::<Value>().await.unwrap(), json!({"status": "ok"}));
     // A caller's request id is kept.
-    let r = app.client.get(app.url("/healthz")).header("x-request-id", "abc-123").send().await.unwrap();
+    let r = app
+        .client
+        .get(app.url("/healthz"))
+        .header("x-request-id", "abc-123")
+        .send()
+        .await
+        .unwrap();
     assert_eq!(r.headers()["x-request-id"], "abc-123");
-    assert_eq!(app.put_json("/v1/machines/m", &machine_xyz()).await.status(), 201);
+    assert_eq!(
+        app.put_json("/v1/machines/m", &machine_xyz())
+            .await
+            .status(),
+        201
+    );
     assert_eq!(app.get("/v1/machines/nope").await.status(), 404);
     let text = app.get("/metrics").await.text().await.unwrap();
     for needle in [
@@ -132,13 +192,30 @@ async fn oversize_bodies_get_413_and_nothing_is_written() {
     let app = spawn_app_with(|c| c.max_body_bytes = 4096).await;
     seed_machine_and_surface(&app, "m", "s", 2, 2).await;
     let big = json!({"deviations": vec![0.125; 2000]});
-    assert_problem(app.post_json("/v1/machines/m/surfaces/s/measurements", &big).await, 413, &["4096"]).await;
+    assert_problem(
+        app.post_json("/v1/machines/m/surfaces/s/measurements", &big)
+            .await,
+        413,
+        &["4096"],
+    )
+    .await;
     let csv = format!("deviation\n{}", "0.125\n".repeat(2000));
-    assert_problem(app.post_raw("/v1/machines/m/surfaces/s/measurements", "text/csv", csv).await, 413, &["at most"]).await;
+    assert_problem(
+        app.post_raw("/v1/machines/m/surfaces/s/measurements", "text/csv", csv)
+            .await,
+        413,
+        &["at most"],
+    )
+    .await;
     let mut def = machine_xyz();
     def["notes"] = json!("x".repeat(5000));
     assert_problem(app.put_json("/v1/machines/m3", &def).await, 413, &["bytes"]).await;
-    let list: Value = app.get("/v1/machines/m/surfaces/s/measurements").await.json().await.unwrap();
+    let list: Value = app
+        .get("/v1/machines/m/surfaces/s/measurements")
+        .await
+        .json()
+        .await
+        .unwrap();
     assert_eq!(list["measurements"], json!([]));
     assert_problem(app.get("/v1/machines/m3").await, 404, &["m3"]).await;
 }
@@ -148,16 +225,29 @@ async fn a_250k_point_csv_upload_round_trips() {
     let app = spawn_app().await;
     seed_machine_and_surface(&app, "m", "small", 2, 2).await;
     // 500 × 500 grid: the surface itself is 250,000 points.
-    let r = app.put_json("/v1/machines/m/surfaces/big", &flat_surface(500, 500)).await;
+    let r = app
+        .put_json("/v1/machines/m/surfaces/big", &flat_surface(500, 500))
+        .await;
     assert_eq!(r.status(), 201);
     let mut csv = String::from("id,x,y,z\n");
     for k in 0..250_000usize {
         let z = ((k % 1000) as f64 - 500.0) * 1e-5;
         csv.push_str(&format!("{k},{},{},{z}\n", k % 500, k / 500));
     }
-    let r = app.post_raw("/v1/machines/m/surfaces/big/measurements?id=full", "text/csv", csv).await;
+    let r = app
+        .post_raw(
+            "/v1/machines/m/surfaces/big/measurements?id=full",
+            "text/csv",
+            csv,
+        )
+        .await;
     assert_eq!(r.status(), 201);
-    let got: Value = app.get("/v1/machines/m/surfaces/big/measurements/full").await.json().await.unwrap();
+    let got: Value = app
+        .get("/v1/machines/m/surfaces/big/measurements/full")
+        .await
+        .json()
+        .await
+        .unwrap();
     let devs = got["deviations"].as_array().unwrap();
     assert_eq!(devs.len(), 250_000);
     assert_eq!(got["n"], 250_000);
@@ -193,16 +283,39 @@ fn start_binary(args: &[&str]) -> (std::process::Child, String) {
 async fn binary_serves_demo_and_exits_0_on_sigterm() {
     let dir = tempfile::tempdir().unwrap();
     let data = dir.path().to_string_lossy().to_string();
-    let (mut child, base) = start_binary(&["serve", "--addr", "127.0.0.1:0", "--data-dir", &data, "--demo"]);
+    let (mut child, base) = start_binary(&[
+        "serve",
+        "--addr",
+        "127.0.0.1:0",
+        "--data-dir",
+        &data,
+        "--demo",
+    ]);
     let client = reqwest::Client::new();
-    let r = client.get(format!("{base}/v1/machines/demo/surfaces/saddle/measurements/demo-1")).send().await.unwrap();
+    let r = client
+        .get(format!(
+            "{base}/v1/machines/demo/surfaces/saddle/measurements/demo-1"
+        ))
+        .send()
+        .await
+        .unwrap();
     assert_eq!(r.status(), 200);
     let m: Value = r.json().await.unwrap();
     assert_eq!(m["n"], 41 * 41);
     assert!(m["max_abs"].as_f64().unwrap() > 0.02 && m["max_abs"].as_f64().unwrap() < 0.04);
-    let s: Value = client.get(format!("{base}/v1/machines/demo/surfaces/saddle")).send().await.unwrap().json().await.unwrap();
+    let s: Value = client
+        .get(format!("{base}/v1/machines/demo/surfaces/saddle"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
     assert_eq!(s["nominal"]["grid"]["nu"], 41);
-    let status = Command::new("kill").args(["-TERM", &child.id().to_string()]).status().unwrap();
+    let status = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
     assert!(status.success());
     let mut exited = None;
     for _ in 0..100 {
@@ -218,10 +331,26 @@ async fn binary_serves_demo_and_exits_0_on_sigterm() {
     });
     assert!(st.success(), "exit status {st:?}");
     // Restarting with --demo on the same data dir keeps the data (loaded once).
-    let (mut child, base) = start_binary(&["serve", "--addr", "127.0.0.1:0", "--data-dir", &data, "--demo"]);
-    let list: Value = client.get(format!("{base}/v1/machines")).send().await.unwrap().json().await.unwrap();
+    let (mut child, base) = start_binary(&[
+        "serve",
+        "--addr",
+        "127.0.0.1:0",
+        "--data-dir",
+        &data,
+        "--demo",
+    ]);
+    let list: Value = client
+        .get(format!("{base}/v1/machines"))
+        .send()
+        .await
+        .unwrap()
+        .json()
+        .await
+        .unwrap();
     assert_eq!(list["machines"].as_array().unwrap().len(), 1);
-    let _ = Command::new("kill").args(["-INT", &child.id().to_string()]).status();
+    let _ = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status();
     assert!(child.wait().unwrap().success());
 }
 

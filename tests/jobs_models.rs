@@ -31,17 +31,8 @@ async fn job_json(app: &TestApp, id: &str) -> Value {
 }
 
 async fn back_pressure(app: TestApp) {
-    // 2 workers (helpers' default), queue 0 here: the third concurrent item is refused.
-    let app = {
-        let mut config = app.config.clone();
-        config.queue = 0;
-        drop(app);
-        let dir = tempfile::tempdir().unwrap();
-        config.data_dir = dir.path().to_path_buf();
-        let server = truecut::server::start(&config).await.unwrap();
-        (server, dir)
-    };
-    let (server, _dir) = app;
+    // 2 workers (helpers' default) and queue 0: the third concurrent item is refused.
+    let server = app.server();
     let pool = server.state().jobs.clone();
     let (release_tx, release_rx) = mpsc::channel::<()>();
     let release_rx = std::sync::Arc::new(std::sync::Mutex::new(release_rx));
@@ -54,14 +45,22 @@ async fn back_pressure(app: TestApp) {
         }));
     }
     eventually("two running", || pool.running() == 2).await;
-    let err = pool.run(|| 1).await.err().expect("pool is full");
+    let err = pool.run(|| 1).await.expect_err("pool is full");
     let resp = err.into_response();
     assert_eq!(resp.status(), 503);
     assert_eq!(resp.headers()["retry-after"], "2");
-    let err = pool.submit("x", |_| Ok(json!(1))).await.err().expect("pool is full");
+    let err = pool
+        .submit("x", |_| Ok(json!(1)))
+        .await
+        .expect_err("pool is full");
     assert_eq!(err.status(), 503);
     // The gauges and the rejection counter show in /metrics.
-    let text = reqwest::get(format!("http://{}/metrics", server.addr())).await.unwrap().text().await.unwrap();
+    let text = reqwest::get(format!("http://{}/metrics", server.addr()))
+        .await
+        .unwrap()
+        .text()
+        .await
+        .unwrap();
     assert!(text.contains("truecut_jobs_running 2"), "{text}");
     assert!(text.contains("truecut_jobs_rejected_total 2"), "{text}");
     release_tx.send(()).unwrap();
@@ -70,9 +69,8 @@ async fn back_pressure(app: TestApp) {
         h.await.unwrap().unwrap();
     }
     assert_eq!(pool.run(|| 41 + 1).await.unwrap(), 42);
-    server.stop().await.unwrap();
 }
-on_both_backends!(back_pressure);
+on_both_backends!(back_pressure, |c| c.queue = 0);
 
 async fn job_lifecycle(app: TestApp) {
     let pool = app.server().state().jobs.clone();
@@ -110,7 +108,10 @@ async fn job_lifecycle(app: TestApp) {
     assert_eq!(seen["kind"], "test-work");
 
     // Failures and panics end as failed with a reason.
-    let failing = pool.submit("test-fail", |_| Err("the input was bad".to_string())).await.unwrap();
+    let failing = pool
+        .submit("test-fail", |_| Err("the input was bad".to_string()))
+        .await
+        .unwrap();
     let panicking = pool.submit("test-panic", |_| panic!("boom")).await.unwrap();
     for (id, needle) in [(failing, "the input was bad"), (panicking, "crashed")] {
         for _ in 0..500 {
@@ -132,21 +133,24 @@ on_both_backends!(job_lifecycle);
 
 async fn jobs_interrupted_by_shutdown_show_failed(app: TestApp) {
     let mut app = app;
-    app.config.shutdown_grace_s = 0;
     let pool = app.server().state().jobs.clone();
     let (go_tx, go_rx) = mpsc::channel::<()>();
-    let id = pool.submit("long", move |_| {
-        let _ = go_rx.recv();
-        Ok(json!(null))
-    })
-    .await
-    .unwrap();
+    let id = pool
+        .submit("long", move |_| {
+            let _ = go_rx.recv();
+            Ok(json!(null))
+        })
+        .await
+        .unwrap();
     eventually("job running", || pool.running() == 1).await;
-    // The server is rebuilt from config on restart; stop uses the grace of the old one (2 s).
+    // Graceful stop: the job does not end within the grace period (2 s in tests).
     app.restart().await;
     let seen = job_json(&app, &id).await;
     assert_eq!(seen["state"], "failed", "{seen}");
-    assert!(seen["error"].as_str().unwrap().contains("interrupted"), "{seen}");
+    assert!(
+        seen["error"].as_str().unwrap().contains("interrupted"),
+        "{seen}"
+    );
     go_tx.send(()).unwrap();
 }
 on_both_backends!(jobs_interrupted_by_shutdown_show_failed);
@@ -157,15 +161,18 @@ async fn jobs_in_flight_at_a_crash_show_failed_after_restart() {
     let store = Store::open(dir.path(), None).await.unwrap();
     let pool = JobPool::start(store.clone(), 1, 4).await.unwrap();
     let (go_tx, go_rx) = mpsc::channel::<()>();
+    let (started_tx, started_rx) = mpsc::channel::<()>();
     let running = pool
         .submit("long", move |_| {
+            started_tx.send(()).unwrap();
             let _ = go_rx.recv();
             Ok(json!(null))
         })
         .await
         .unwrap();
+    started_rx.recv_timeout(Duration::from_secs(5)).unwrap();
     let queued = pool.submit("queued", |_| Ok(json!(null))).await.unwrap();
-    eventually("one running", || pool.running() == 1).await;
+    assert_eq!(pool.status(&queued).await.unwrap().unwrap().state, "queued");
     // "Crash": no shutdown; a new process opens the same data dir.
     let store2 = Store::open(dir.path(), None).await.unwrap();
     let pool2 = JobPool::start(store2, 1, 4).await.unwrap();
@@ -185,38 +192,71 @@ async fn model_store(app: TestApp) {
     seed_machine_and_surface(&app, "m", "s", 2, 2).await;
     let store = app.server().state().store.clone();
     let models = store.models();
-    let payload: Vec<u8> = (0..10_000u32).flat_map(|i| (i as f32).to_le_bytes()).collect();
+    let payload: Vec<u8> = (0..10_000u32)
+        .flat_map(|i| (i as f32).to_le_bytes())
+        .collect();
     assert_eq!(models.load("m", Some("s"), "net").await.unwrap(), None);
     models.save("m", Some("s"), "net", &payload).await.unwrap();
-    models.save("m", None, "map", b"machine-level").await.unwrap();
-    assert_eq!(models.load("m", Some("s"), "net").await.unwrap().unwrap(), payload);
-    assert_eq!(models.load("m", None, "map").await.unwrap().unwrap(), b"machine-level");
+    models
+        .save("m", None, "map", b"machine-level")
+        .await
+        .unwrap();
+    assert_eq!(
+        models.load("m", Some("s"), "net").await.unwrap().unwrap(),
+        payload
+    );
+    assert_eq!(
+        models.load("m", None, "map").await.unwrap().unwrap(),
+        b"machine-level"
+    );
     // Replacing keeps exactly one file and no temp files.
     models.save("m", Some("s"), "net", b"v2").await.unwrap();
     let (dir, file) = models.path_of("m", Some("s"), "net").unwrap();
-    let names: Vec<String> = std::fs::read_dir(&dir).unwrap().map(|e| e.unwrap().file_name().to_string_lossy().into()).collect();
+    let names: Vec<String> = std::fs::read_dir(&dir)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into())
+        .collect();
     assert_eq!(names, vec!["net.tcm".to_string()]);
     // A crash mid-write leaves a partial temp file: the previous model still loads,
     // and the next start sweeps the temp file.
     let tmp = dir.join(".net.tcm.tmp-0123456789");
     std::fs::write(&tmp, b"TRUECUTM partial").unwrap();
-    assert_eq!(models.load("m", Some("s"), "net").await.unwrap().unwrap(), b"v2");
+    assert_eq!(
+        models.load("m", Some("s"), "net").await.unwrap().unwrap(),
+        b"v2"
+    );
     // Corruption: a flipped payload byte, a truncated file, a foreign file.
     let good = std::fs::read(&file).unwrap();
     let mut bad = good.clone();
     *bad.last_mut().unwrap() ^= 1;
     std::fs::write(&file, &bad).unwrap();
-    let err = models.load("m", Some("s"), "net").await.unwrap_err().to_string();
+    let err = models
+        .load("m", Some("s"), "net")
+        .await
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("checksum"), "{err}");
     std::fs::write(&file, &good[..good.len() - 1]).unwrap();
-    let err = models.load("m", Some("s"), "net").await.unwrap_err().to_string();
+    let err = models
+        .load("m", Some("s"), "net")
+        .await
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("corrupt"), "{err}");
     std::fs::write(&file, b"{\"weights\": []}").unwrap();
-    let err = models.load("m", Some("s"), "net").await.unwrap_err().to_string();
+    let err = models
+        .load("m", Some("s"), "net")
+        .await
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("corrupt"), "{err}");
     // Recorded in the database but the file vanished: an error, not "no model".
     std::fs::remove_file(&file).unwrap();
-    let err = models.load("m", Some("s"), "net").await.unwrap_err().to_string();
+    let err = models
+        .load("m", Some("s"), "net")
+        .await
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("missing"), "{err}");
     // Bad components and unknown machines are refused.
     assert!(models.save("m", Some("../x"), "net", b"1").await.is_err());
@@ -226,7 +266,15 @@ async fn model_store(app: TestApp) {
     app.restart().await;
     assert!(!tmp.exists(), "temp file swept at start");
     let store = app.server().state().store.clone();
-    assert_eq!(store.models().load("m", None, "map").await.unwrap().unwrap(), b"machine-level");
+    assert_eq!(
+        store
+            .models()
+            .load("m", None, "map")
+            .await
+            .unwrap()
+            .unwrap(),
+        b"machine-level"
+    );
     assert_eq!(app.delete("/v1/machines/m").await.status(), 204);
     assert!(!store.models().root().join("m").exists());
     assert_eq!(store.models().load("m", None, "map").await.unwrap(), None);
@@ -237,16 +285,62 @@ async fn documents(app: TestApp) {
     seed_machine_and_surface(&app, "m", "s", 2, 2).await;
     seed_machine_and_surface(&app, "m", "s_x", 2, 2).await;
     let store = app.server().state().store.clone();
-    store.put_doc("m", "decomposition", "s/a", &json!({"v": 1})).await.unwrap();
-    store.put_doc("m", "decomposition", "s/a", &json!({"v": 2})).await.unwrap();
-    store.put_doc("m", "decomposition", "s_x/a", &json!({"v": 3})).await.unwrap();
-    // `_` is a LIKE wildcard: "s_x/..." must survive deleting surface "s" ... and vice versa.
-    store.put_doc("m", "decomposition", "sax/a", &json!({"v": 4})).await.unwrap_err();
-    assert_eq!(store.get_doc("m", "decomposition", "s/a").await.unwrap(), Some(json!({"v": 2})));
+    store
+        .put_doc("m", "decomposition", "s/a", &json!({"v": 1}))
+        .await
+        .unwrap();
+    store
+        .put_doc("m", "decomposition", "s/a", &json!({"v": 2}))
+        .await
+        .unwrap();
+    store
+        .put_doc("m", "decomposition", "s_x/a", &json!({"v": 3}))
+        .await
+        .unwrap();
+    store
+        .put_doc("m", "decomposition", "sax/a", &json!({"v": 4}))
+        .await
+        .unwrap();
+    assert_eq!(
+        store.get_doc("m", "decomposition", "s/a").await.unwrap(),
+        Some(json!({"v": 2}))
+    );
     assert_eq!(store.get_doc("m", "other", "s/a").await.unwrap(), None);
     assert_eq!(app.delete("/v1/machines/m/surfaces/s").await.status(), 204);
-    assert_eq!(store.get_doc("m", "decomposition", "s/a").await.unwrap(), None);
-    assert_eq!(store.get_doc("m", "decomposition", "s_x/a").await.unwrap(), Some(json!({"v": 3})));
-    assert!(store.put_doc("nope", "k", "x", &json!(1)).await.is_err(), "machine must exist");
+    assert_eq!(
+        store.get_doc("m", "decomposition", "s/a").await.unwrap(),
+        None
+    );
+    assert_eq!(
+        store.get_doc("m", "decomposition", "s_x/a").await.unwrap(),
+        Some(json!({"v": 3}))
+    );
+    // `_` is a LIKE wildcard: deleting surface "s_x" must not touch "sax/...".
+    assert_eq!(
+        app.delete("/v1/machines/m/surfaces/s_x").await.status(),
+        204
+    );
+    assert_eq!(
+        store.get_doc("m", "decomposition", "s_x/a").await.unwrap(),
+        None
+    );
+    assert_eq!(
+        store.get_doc("m", "decomposition", "sax/a").await.unwrap(),
+        Some(json!({"v": 4}))
+    );
+    assert!(
+        store
+            .delete_doc("m", "decomposition", "sax/a")
+            .await
+            .unwrap()
+    );
+    assert_eq!(
+        store.get_doc("m", "decomposition", "sax/a").await.unwrap(),
+        None
+    );
+    assert!(
+        store.put_doc("nope", "k", "x", &json!(1)).await.is_err(),
+        "machine must exist"
+    );
 }
 on_both_backends!(documents);

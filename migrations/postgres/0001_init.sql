@@ -69,3 +69,10 @@ CREATE TABLE jobs (
 );
 
 CREATE INDEX jobs_owner_state ON jobs (owner, state);
+
+-- Number arrays are incompressible doubles: store them out of line without pglz compression
+-- (compressing megabytes of doubles costs time and saves almost nothing).
+ALTER TABLE surfaces ALTER COLUMN points SET STORAGE EXTERNAL;
+ALTER TABLE surfaces ALTER COLUMN normals SET STORAGE EXTERNAL;
+ALTER TABLE measurements ALTER COLUMN deviations SET STORAGE EXTERNAL;
+ALTER TABLE measurements ALTER COLUMN points SET STORAGE EXTERNAL;

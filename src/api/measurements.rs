@@ -90,9 +90,8 @@ async fn post_measurement(
     }
     if state
         .store
-        .get_measurement(&machine, &surface, &id)
+        .measurement_exists(&machine, &surface, &id)
         .await?
-        .is_some()
     {
         return Err(ApiError::conflict(format!(
             "measurement '{id}' already exists on surface '{surface}'; choose another id or DELETE it first"

@@ -6,8 +6,10 @@
 //! the `.route("...")` literals of `src/api/*.rs` and compares them with `openapi.yaml`.
 
 pub mod auth;
+pub mod contour;
 pub mod error;
 pub mod extract;
+pub mod gap;
 pub mod health;
 pub mod jobs;
 pub mod lookup;
@@ -15,8 +17,10 @@ pub mod machines;
 pub mod measurements;
 pub mod metrics;
 pub mod middleware;
+pub mod step_error;
 pub mod surfaces;
 pub mod upload;
+pub mod volumetric;
 
 use std::sync::Arc;
 
@@ -57,6 +61,10 @@ pub fn router(state: AppState) -> Router {
         .merge(machines::routes())
         .merge(surfaces::routes())
         .merge(measurements::routes())
+        .merge(contour::routes())
+        .merge(volumetric::routes())
+        .merge(gap::routes())
+        .merge(step_error::routes())
         .fallback(middleware::fallback)
         // Innermost first: auth sees only routed requests; the problem+json rewrite covers
         // framework rejections (405, path errors); metrics see the final status.

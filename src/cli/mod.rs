@@ -1,8 +1,10 @@
 //! Command-line entry points. Each subcommand lives in its own file with
 //! `pub struct Args` (clap) and `pub fn run(args: Args) -> anyhow::Result<()>`.
 
+pub mod contour;
 pub mod demo;
 pub mod serve;
+pub mod volumetric;
 
 use clap::{Parser, Subcommand};
 
@@ -20,12 +22,18 @@ pub struct Cli {
 pub enum Command {
     /// Serve the REST API until SIGINT/SIGTERM (`--demo` loads a demo machine and surface).
     Serve(crate::config::Config),
+    /// Predict the contour error of a G-code program on a machine (machine JSON file or stored id).
+    Contour(contour::Args),
+    /// Fit a volumetric error map to measured nodes (CSV), export a compensation table.
+    Volumetric(volumetric::Args),
 }
 
 /// Runs a parsed command line.
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Serve(config) => serve::run(config),
+        Command::Contour(a) => contour::run(a),
+        Command::Volumetric(a) => volumetric::run(a),
     }
 }
 

@@ -129,6 +129,11 @@ impl Store {
         &self.models
     }
 
+    /// The connection pool (for benches and maintenance tools; routes use the typed methods).
+    pub fn pool(&self) -> &AnyPool {
+        &self.db
+    }
+
     /// Which database backs this store.
     pub fn backend(&self) -> Backend {
         self.backend

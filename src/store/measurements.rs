@@ -121,6 +121,19 @@ impl Store {
         }))
     }
 
+    /// True when the measurement id is taken on that surface (no arrays are read).
+    pub async fn measurement_exists(&self, machine: &str, surface: &str, id: &str) -> Result<bool> {
+        let n: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM measurements WHERE machine = $1 AND surface = $2 AND id = $3",
+        )
+        .bind(machine.to_string())
+        .bind(surface.to_string())
+        .bind(id.to_string())
+        .fetch_one(&self.db)
+        .await?;
+        Ok(n > 0)
+    }
+
     /// The surface's measurements (without arrays), oldest first.
     pub async fn list_measurements(
         &self,

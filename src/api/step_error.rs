@@ -1,0 +1,676 @@
+//! Step error of ball-end finishing (CONTRACT "Step error"; seed 000): the exact geometric route,
+//! sample generation, training / fine-tuning the network as a job, and prediction from it.
+//! Also the one `From<geometry::Error>` and `From<nn::Error>` for `ApiError`.
+
+mod json;
+
+use axum::Router;
+use axum::body::Bytes;
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::post;
+use serde::{Deserialize, Serialize};
+use serde_json::value::RawValue;
+use serde_json::{Value, json};
+
+use super::AppState;
+use super::auth::RequireAdmin;
+use super::error::{ApiError, ApiResult};
+use super::extract::{ApiJson, check_id, is_json};
+use super::lookup::{require_machine, require_surface};
+use crate::geometry::{
+    self, HeightSurface, PathPlan, StepError, StepErrorSegment, StepErrorSolver, StepFeatures, grid_segments,
+    height_surface_segments,
+};
+use crate::nn::{self, Activation, Init, Mlp, Regressor, TrainConfig, gather_rows, split_indices};
+pub use json::SegmentBatch;
+
+/// Model kind under which the network is stored per machine and surface.
+pub const MODEL_KIND: &str = "step_error_nn";
+/// Segments answered synchronously by the sample routes (the exact route takes any count the
+/// body limit lets through; CONTRACT: sync up to 100,000).
+pub const MAX_SYNC_SAMPLES: usize = 200_000;
+
+/// Routes of this resource.
+pub fn routes() -> Router<AppState> {
+    Router::new()
+        .route("/v1/step-error", post(exact))
+        .route("/v1/step-error/samples", post(samples))
+        .route("/v1/machines/{machine}/surfaces/{surface}/step-error-samples", post(surface_samples))
+        .route("/v1/machines/{machine}/surfaces/{surface}/step-error-model", post(train).get(model_info))
+        .route("/v1/machines/{machine}/surfaces/{surface}/step-error-model/predict", post(predict))
+}
+
+impl From<geometry::Error> for ApiError {
+    fn from(e: geometry::Error) -> Self {
+        use geometry::Error as G;
+        match e {
+            G::InSegment { index, source } => {
+                let inner: ApiError = (*source).into();
+                let detail = format!("segments[{index}]: {}", inner.detail());
+                if inner.status() == StatusCode::BAD_REQUEST {
+                    ApiError::bad_request(detail)
+                } else {
+                    ApiError::unprocessable(detail)
+                }
+            }
+            G::NonFinite { .. } | G::InvalidParameter { .. } | G::Shape { .. } => ApiError::bad_request(e.to_string()),
+            G::TooFewPoints { .. } | G::DuplicatePoints { .. } | G::ZeroLengthStep | G::InconsistentRadius { .. } => {
+                ApiError::unprocessable(e.to_string())
+            }
+        }
+    }
+}
+
+impl From<nn::Error> for ApiError {
+    fn from(e: nn::Error) -> Self {
+        use nn::Error as N;
+        match e {
+            N::InvalidParameter { .. } | N::TooFewLayers(_) | N::EmptyLayer { .. } | N::NonFinite { .. } => {
+                ApiError::bad_request(e.to_string())
+            }
+            N::TooFewSamples { .. } | N::Diverged { .. } | N::Incompatible(_) | N::Shape { .. } => {
+                ApiError::unprocessable(e.to_string())
+            }
+            N::Format(_) => ApiError::internal(e),
+        }
+    }
+}
+
+// ---------- lean request decoding ----------
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SegmentsBody<'a> {
+    #[serde(default)]
+    tool_radius: Option<f64>,
+    #[serde(borrow)]
+    segments: &'a RawValue,
+}
+
+fn check_tool_radius(r: f64) -> ApiResult<()> {
+    if r.is_finite() && r > 0.0 && r < 1000.0 {
+        Ok(())
+    } else {
+        Err(ApiError::bad_request(format!(
+            "tool_radius must be the ball radius in mm, a finite number in (0, 1000), got {r}"
+        )))
+    }
+}
+
+/// Decodes `{"tool_radius"?: mm, "segments": [...]}` without building a `Vec` per segment.
+fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f64>, SegmentBatch)> {
+    if !is_json(headers) {
+        return Err(ApiError::unsupported_media_type("send the body with Content-Type: application/json"));
+    }
+    if body.is_empty() {
+        return Err(ApiError::bad_request("the request body is empty; send {\"tool_radius\": mm, \"segments\": [...]}"));
+    }
+    let req: SegmentsBody = serde_json::from_slice(body).map_err(|e| ApiError::bad_request(format!("invalid JSON body: {e}")))?;
+    if let Some(r) = req.tool_radius {
+        check_tool_radius(r)?;
+    }
+    let raw = req.segments.get().as_bytes();
+    let ranges = json::element_ranges(raw).map_err(ApiError::bad_request)?;
+    if ranges.is_empty() {
+        return Err(ApiError::bad_request("segments is empty: send at least one {\"cl\": [...], \"cc\": [...]}"));
+    }
+    // Parse in parallel at segment boundaries, then concatenate.
+    let threads = std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).min(8);
+    let per = ranges.len().div_ceil(threads).max(2048);
+    let parts: Vec<Result<SegmentBatch, String>> = std::thread::scope(|s| {
+        let hs: Vec<_> = ranges
+            .chunks(per)
+            .enumerate()
+            .map(|(c, chunk)| {
+                s.spawn(move || {
+                    let mut b = SegmentBatch::default();
+                    json::decode_into(raw, chunk, c * per, &mut b).map(|_| b)
+                })
+            })
+            .collect();
+        hs.into_iter().map(|h| h.join().unwrap_or_else(|_| Err("decoder crashed".into()))).collect()
+    });
+    let mut all = SegmentBatch::default();
+    all.start.push(0);
+    for p in parts {
+        let p = p.map_err(ApiError::bad_request)?;
+        let base = all.cc.len();
+        all.cl.extend_from_slice(&p.cl);
+        all.cc.extend_from_slice(&p.cc);
+        all.start.extend(p.start[1..].iter().map(|s| s + base));
+    }
+    Ok((req.tool_radius, all))
+}
+
+/// Exact step errors of a batch, split over the machine's cores.
+fn solve_batch(r: f64, batch: &SegmentBatch) -> Result<Vec<StepError>, geometry::Error> {
+    let n = batch.len();
+    let threads = std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).min(8);
+    let per = n.div_ceil(threads).max(2048);
+    let parts: Vec<Result<Vec<StepError>, geometry::Error>> = std::thread::scope(|s| {
+        let hs: Vec<_> = (0..n)
+            .step_by(per)
+            .map(|from| {
+                s.spawn(move || {
+                    let mut solver = StepErrorSolver::default();
+                    (from..(from + per).min(n))
+                        .map(|i| {
+                            let (cl, cc) = batch.get(i);
+                            solver.solve(r, cl, cc).map_err(|e| geometry::Error::InSegment { index: i, source: Box::new(e) })
+                        })
+                        .collect()
+                })
+            })
+            .collect();
+        hs.into_iter().map(|h| h.join().expect("step-error worker panicked")).collect()
+    });
+    let mut out = Vec::with_capacity(n);
+    for p in parts {
+        out.extend(p?);
+    }
+    Ok(out)
+}
+
+fn json_response(body: Vec<u8>) -> Response {
+    ([(header::CONTENT_TYPE, "application/json")], body).into_response()
+}
+
+#[derive(Serialize)]
+struct ExactAnswer<'a> {
+    step_errors: &'a [f64],
+    /// Indices of segments whose CC curve has an inflection (the middle's convexity decided).
+    inflections: Vec<usize>,
+    tool_radius: f64,
+    unit: &'static str,
+}
+
+async fn exact(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
+    let out = state
+        .jobs
+        .run(move || -> ApiResult<Vec<u8>> {
+            let (r, batch) = decode_segments(&headers, &body)?;
+            let r = r.ok_or_else(|| ApiError::bad_request("tool_radius (mm) is required"))?;
+            let errs = solve_batch(r, &batch)?;
+            let e: Vec<f64> = errs.iter().map(|e| e.error_mm).collect();
+            let inflections = errs.iter().enumerate().filter(|(_, e)| e.inflection).map(|(i, _)| i).collect();
+            serde_json::to_vec(&ExactAnswer { step_errors: &e, inflections, tool_radius: r, unit: "mm" }).map_err(ApiError::internal)
+        })
+        .await??;
+    Ok(json_response(out))
+}
+
+// ---------- sample generation ----------
+
+/// Where samples come from in `POST /v1/step-error/samples`.
+#[derive(Debug, Deserialize)]
+#[serde(rename_all = "snake_case", deny_unknown_fields)]
+enum SampleSurface {
+    /// An analytic height function `z = scale * sum(terms) + offset`.
+    Height(HeightSurface),
+    /// One of the Python study's surfaces 1, 2, 3.
+    Reference(u32),
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SamplesRequest {
+    surface: SampleSurface,
+    plan: PathPlan,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SurfaceSamplesRequest {
+    plan: PlanWithOptionalRadius,
+}
+
+/// A [`PathPlan`] whose radius defaults to the stored surface's `tool_radius`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PlanWithOptionalRadius {
+    #[serde(default)]
+    tool_radius_mm: Option<f64>,
+    #[serde(default)]
+    step_over_mm: Option<f64>,
+    #[serde(default)]
+    cl_spacing_mm: Option<f64>,
+    #[serde(default)]
+    lines: Option<usize>,
+    #[serde(default)]
+    points_per_line: Option<usize>,
+    #[serde(default)]
+    cc_points: Option<usize>,
+}
+
+impl PlanWithOptionalRadius {
+    fn resolve(&self, surface_radius: Option<f64>) -> ApiResult<PathPlan> {
+        let r = self.tool_radius_mm.or(surface_radius).ok_or_else(|| {
+            ApiError::bad_request("plan.tool_radius_mm is required (the surface has no tool_radius stored)")
+        })?;
+        check_tool_radius(r)?;
+        Ok(PathPlan {
+            tool_radius_mm: r,
+            step_over_mm: self.step_over_mm,
+            cl_spacing_mm: self.cl_spacing_mm,
+            lines: self.lines,
+            points_per_line: self.points_per_line,
+            cc_points: self.cc_points.unwrap_or(20),
+        })
+    }
+}
+
+#[derive(Serialize)]
+struct SamplesAnswer<'a> {
+    tool_radius: f64,
+    segments: &'a [StepErrorSegment],
+    step_errors: Vec<f64>,
+    convex: Vec<bool>,
+    inflections: Vec<usize>,
+    unit: &'static str,
+}
+
+fn labelled_samples_json(r: f64, segs: Vec<StepErrorSegment>) -> ApiResult<Vec<u8>> {
+    if segs.len() > MAX_SYNC_SAMPLES {
+        return Err(ApiError::payload_too_large(format!(
+            "the plan makes {} segments; this route answers at most {MAX_SYNC_SAMPLES}: raise step_over_mm or cl_spacing_mm",
+            segs.len()
+        )));
+    }
+    let errs = geometry::step_errors(r, &segs, 0)?;
+    serde_json::to_vec(&SamplesAnswer {
+        tool_radius: r,
+        segments: &segs,
+        step_errors: errs.iter().map(|e| e.error_mm).collect(),
+        convex: errs.iter().map(|e| e.convex).collect(),
+        inflections: errs.iter().enumerate().filter(|(_, e)| e.inflection).map(|(i, _)| i).collect(),
+        unit: "mm",
+    })
+    .map_err(ApiError::internal)
+}
+
+async fn samples(State(state): State<AppState>, ApiJson(req): ApiJson<SamplesRequest>) -> ApiResult<Response> {
+    check_tool_radius(req.plan.tool_radius_mm)?;
+    let surface = match req.surface {
+        SampleSurface::Height(h) => h,
+        SampleSurface::Reference(id) => HeightSurface::reference(id)
+            .ok_or_else(|| ApiError::bad_request(format!("surface.reference must be 1, 2 or 3 (the study's surfaces), got {id}")))?,
+    };
+    let out = state
+        .jobs
+        .run(move || {
+            let segs = height_surface_segments(&surface, &req.plan)?;
+            labelled_samples_json(req.plan.tool_radius_mm, segs)
+        })
+        .await??;
+    Ok(json_response(out))
+}
+
+async fn surface_samples(
+    State(state): State<AppState>,
+    Path((machine, surface)): Path<(String, String)>,
+    ApiJson(req): ApiJson<SurfaceSamplesRequest>,
+) -> ApiResult<Response> {
+    let s = require_surface(&state, &machine, &surface).await?;
+    let plan = req.plan.resolve(s.tool_radius)?;
+    let out = state
+        .jobs
+        .run(move || {
+            let segs = grid_segments(s.nu, s.nv, &s.points, &s.normals, &plan)?;
+            labelled_samples_json(plan.tool_radius_mm, segs)
+        })
+        .await??;
+    Ok(json_response(out))
+}
+
+// ---------- the network ----------
+
+/// What is stored beside the weights (the model file's metadata, JSON).
+#[derive(Debug, Clone, Serialize, Deserialize)]
+struct ModelMeta {
+    kind: String,
+    features: StepFeatures,
+    tool_radius_mm: f64,
+    hidden: Vec<usize>,
+    output_unit: String,
+    report: Value,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BaseRef {
+    machine: String,
+    surface: String,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, Default, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum Preset {
+    /// He init, Adam 1e-3 with cosine decay, no dropout, early stopping (converges).
+    #[default]
+    Default,
+    /// The seed's settings: N(0,1) init, SGD lr 1e-5 momentum 0.8, dropout 0.5 (does not converge).
+    Paper,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TrainRequest {
+    #[serde(default)]
+    tool_radius: Option<f64>,
+    #[serde(default)]
+    segments: Option<Vec<StepErrorSegment>>,
+    /// Generate labelled samples from the stored nominal grid instead of sending segments.
+    #[serde(default)]
+    generate: Option<PlanWithOptionalRadius>,
+    #[serde(default)]
+    base: Option<BaseRef>,
+    #[serde(default)]
+    hidden: Option<Vec<usize>>,
+    #[serde(default)]
+    epochs: Option<usize>,
+    #[serde(default)]
+    preset: Option<Preset>,
+    #[serde(default)]
+    features: Option<StepFeatures>,
+    #[serde(default)]
+    learning_rate: Option<f64>,
+    #[serde(default)]
+    dropout: Option<f64>,
+    #[serde(default)]
+    batch_size: Option<usize>,
+    /// Part of the samples held out to report accuracy (the paper's 30 %).
+    #[serde(default)]
+    test_fraction: Option<f64>,
+    #[serde(default)]
+    seed: Option<u64>,
+}
+
+fn model_missing(machine: &str, surface: &str) -> ApiError {
+    ApiError::not_found(format!(
+        "no step-error model for machine '{machine}' surface '{surface}': train one with \
+         POST /v1/machines/{machine}/surfaces/{surface}/step-error-model"
+    ))
+}
+
+async fn load_model(state: &AppState, machine: &str, surface: &str) -> ApiResult<(Regressor, ModelMeta)> {
+    let bytes = state.store.models().load(machine, Some(surface), MODEL_KIND).await?.ok_or_else(|| model_missing(machine, surface))?;
+    let reg = Regressor::from_bytes(&bytes).map_err(ApiError::internal)?;
+    let meta: ModelMeta = serde_json::from_str(&reg.metadata).map_err(ApiError::internal)?;
+    Ok((reg, meta))
+}
+
+async fn train(
+    State(state): State<AppState>,
+    _admin: RequireAdmin,
+    Path((machine, surface)): Path<(String, String)>,
+    ApiJson(req): ApiJson<TrainRequest>,
+) -> ApiResult<impl IntoResponse> {
+    let stored = require_surface(&state, &machine, &surface).await?;
+    let base = match &req.base {
+        Some(b) => {
+            check_id("base.machine", &b.machine)?;
+            check_id("base.surface", &b.surface)?;
+            Some(load_model(&state, &b.machine, &b.surface).await.map_err(|e| {
+                if e.status() == StatusCode::NOT_FOUND {
+                    ApiError::not_found(format!(
+                        "base model of machine '{}' surface '{}' does not exist: train it first",
+                        b.machine, b.surface
+                    ))
+                } else {
+                    e
+                }
+            })?)
+        }
+        None => None,
+    };
+    // Samples: sent, or generated from the stored nominal grid.
+    let (r, segments) = match (req.segments, &req.generate) {
+        (Some(_), Some(_)) => return Err(ApiError::bad_request("send either segments or generate, not both")),
+        (Some(segs), None) => {
+            let r = req.tool_radius.or(stored.tool_radius).ok_or_else(|| ApiError::bad_request("tool_radius (mm) is required with segments"))?;
+            check_tool_radius(r)?;
+            if segs.is_empty() {
+                return Err(ApiError::bad_request("segments is empty"));
+            }
+            (r, segs)
+        }
+        (None, Some(g)) => {
+            let plan = g.resolve(req.tool_radius.or(stored.tool_radius))?;
+            let segs = grid_segments(stored.nu, stored.nv, &stored.points, &stored.normals, &plan)?;
+            (plan.tool_radius_mm, segs)
+        }
+        (None, None) => {
+            return Err(ApiError::bad_request(
+                "send segments (with tool_radius) or generate: {\"step_over_mm\": .., \"cl_spacing_mm\": ..} to sample the stored surface",
+            ));
+        }
+    };
+    if segments.len() < 10 {
+        return Err(ApiError::unprocessable(format!("{} segments are too few to train on: send at least 10", segments.len())));
+    }
+    let preset = req.preset.unwrap_or_default();
+    let (features, hidden) = match &base {
+        Some((reg, meta)) => {
+            if req.hidden.is_some() || req.features.is_some() {
+                return Err(ApiError::bad_request("hidden and features come from the base model when fine-tuning: drop them"));
+            }
+            let sizes = reg.mlp().sizes();
+            (meta.features, sizes[1..sizes.len() - 1].to_vec())
+        }
+        None => {
+            let f = req.features.unwrap_or(StepFeatures { two_sided: true, ..StepFeatures::local() });
+            f.validate()?;
+            let hidden = req.hidden.clone().unwrap_or_else(|| vec![28, 20]);
+            if hidden.is_empty() || hidden.len() > 8 || hidden.iter().any(|&h| h == 0 || h > 1024) {
+                return Err(ApiError::bad_request("hidden must list 1 to 8 layer sizes, each 1..=1024 (default [28, 20])"));
+            }
+            (f, hidden)
+        }
+    };
+    let mut cfg = match preset {
+        Preset::Default => TrainConfig::default(),
+        Preset::Paper => TrainConfig::paper(),
+    };
+    if base.is_some() {
+        cfg.epochs = 100;
+        cfg.patience = Some(20);
+    }
+    if let Some(e) = req.epochs {
+        if !(1..=20_000).contains(&e) {
+            return Err(ApiError::bad_request(format!("epochs must be in 1..=20000, got {e}")));
+        }
+        cfg.epochs = e;
+    }
+    if let Some(lr) = req.learning_rate {
+        cfg.optimizer = match cfg.optimizer {
+            nn::Optimizer::Sgd { momentum, .. } => nn::Optimizer::Sgd { lr, momentum },
+            nn::Optimizer::Adam { beta1, beta2, eps, .. } => nn::Optimizer::Adam { lr, beta1, beta2, eps },
+        };
+    }
+    if let Some(d) = req.dropout {
+        cfg.dropout = d;
+    }
+    if let Some(b) = req.batch_size {
+        cfg.batch_size = b;
+    }
+    cfg.seed = req.seed.unwrap_or(0);
+    let test_fraction = req.test_fraction.unwrap_or(0.3);
+    if !(0.0..=0.9).contains(&test_fraction) {
+        return Err(ApiError::bad_request(format!("test_fraction must be in [0, 0.9] (default 0.3), got {test_fraction}")));
+    }
+    let init = if preset == Preset::Paper { Init::StandardNormal } else { Init::He };
+    let store = state.store.clone();
+    let handle = tokio::runtime::Handle::current();
+    let base_name = req.base.map(|b| json!({"machine": b.machine, "surface": b.surface}));
+    let id = state
+        .jobs
+        .submit("step_error_training", move |progress| {
+            let job = TrainJob { r, features, hidden, init, cfg, test_fraction, base: base.map(|b| b.0), base_name };
+            let (reg, result) = job.run(&segments, &|p| progress.set(p)).map_err(|e| e.detail().to_string())?;
+            handle
+                .block_on(store.models().save(&machine, Some(&surface), MODEL_KIND, &reg.to_bytes()))
+                .map_err(|e| format!("the model was trained but could not be saved: {e:#}"))?;
+            Ok(result)
+        })
+        .await?;
+    Ok((StatusCode::ACCEPTED, ApiJson(json!({"job": id}))))
+}
+
+/// The training work, off the async runtime.
+struct TrainJob {
+    r: f64,
+    features: StepFeatures,
+    hidden: Vec<usize>,
+    init: Init,
+    cfg: TrainConfig,
+    test_fraction: f64,
+    base: Option<Regressor>,
+    base_name: Option<Value>,
+}
+
+/// (max, mean) absolute error, µm.
+fn abs_errors(pred: &[f64], truth: &[f64]) -> (f64, f64) {
+    let e = pred.iter().zip(truth).map(|(p, t)| (p - t).abs());
+    let (mut max, mut sum) = (0.0f64, 0.0);
+    for v in e {
+        max = max.max(v);
+        sum += v;
+    }
+    (max, sum / truth.len().max(1) as f64)
+}
+
+impl TrainJob {
+    fn run(self, segs: &[StepErrorSegment], progress: &dyn Fn(f64)) -> ApiResult<(Regressor, Value)> {
+        let f = self.features;
+        let mut solver = StepErrorSolver::default().both_branches(f.two_sided);
+        let exact: Vec<StepError> = segs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| solver.solve(self.r, s.cl, &s.cc).map_err(|e| geometry::Error::InSegment { index: i, source: Box::new(e) }))
+            .collect::<Result<_, _>>()?;
+        progress(0.05);
+        let (x, convex) = f.matrix(self.r, segs.iter().map(|s| (s.cl, &s.cc[..])))?;
+        let t: Vec<f64> = exact.iter().flat_map(|e| f.targets(e)).collect();
+        let y_um: Vec<f64> = exact.iter().map(|e| e.error_mm * 1000.0).collect();
+        let (w, no) = (f.len(), f.n_outputs());
+        let (train_idx, test_idx) = split_indices(segs.len(), self.test_fraction, self.cfg.seed);
+        let (fit_pos, val_pos) = split_indices(train_idx.len(), if self.base.is_some() { 0.2 } else { 0.1 }, self.cfg.seed + 1);
+        let pick = |pos: &[usize]| pos.iter().map(|&i| train_idx[i]).collect::<Vec<_>>();
+        let (fit, val) = (pick(&fit_pos), pick(&val_pos));
+        if fit.is_empty() || val.is_empty() {
+            return Err(ApiError::unprocessable("too few segments to split into training and validation parts: send more"));
+        }
+        let (xf, tf) = (gather_rows(&x, w, &fit), gather_rows(&t, no, &fit));
+        let (xv, tv) = (gather_rows(&x, w, &val), gather_rows(&t, no, &val));
+        let epochs = self.cfg.epochs as f64;
+        let mut on_epoch = |s: &nn::EpochStats| {
+            progress(0.05 + 0.9 * s.epoch as f64 / epochs);
+            true
+        };
+        let eval = |reg: &Regressor| -> ApiResult<Option<(f64, f64)>> {
+            if test_idx.is_empty() {
+                return Ok(None);
+            }
+            let p = reg.predict(&gather_rows(&x, w, &test_idx))?;
+            let c: Vec<bool> = test_idx.iter().map(|&i| convex[i]).collect();
+            let truth: Vec<f64> = test_idx.iter().map(|&i| y_um[i]).collect();
+            Ok(Some(abs_errors(&f.combine(&p, &c), &truth)))
+        };
+        let (reg, report, base_test) = match self.base {
+            Some(mut reg) => {
+                let before = eval(&reg)?;
+                let rep = reg.fine_tune(&xf, &tf, Some((&xv, &tv)), &self.cfg, &mut on_epoch)?;
+                (reg, rep, before)
+            }
+            None => {
+                let mut sizes = vec![w];
+                sizes.extend(&self.hidden);
+                sizes.push(no);
+                let mlp = Mlp::new(&sizes, Activation::Relu, Activation::Identity, self.init, self.cfg.seed)?;
+                let (reg, rep) = Regressor::fit(mlp, &xf, &tf, Some((&xv, &tv)), &self.cfg, &mut on_epoch)?;
+                (reg, rep, None)
+            }
+        };
+        let test = eval(&reg)?;
+        let result = json!({
+            "kind": MODEL_KIND,
+            "samples": segs.len(),
+            "train": fit.len(),
+            "validation": val.len(),
+            "test": test_idx.len(),
+            "epochs_run": report.train_loss.len(),
+            "best_epoch": report.best_epoch,
+            "stopped_early": report.stopped_early,
+            "best_validation_mse": report.best_val_loss,
+            "test_max_abs_um": test.map(|t| t.0),
+            "test_mean_abs_um": test.map(|t| t.1),
+            "base": self.base_name,
+            "base_test_max_abs_um": base_test.map(|t| t.0),
+            "base_test_mean_abs_um": base_test.map(|t| t.1),
+            "label_max_um": y_um.iter().cloned().fold(0.0, f64::max),
+        });
+        let meta = ModelMeta {
+            kind: MODEL_KIND.into(),
+            features: f,
+            tool_radius_mm: self.r,
+            hidden: reg.mlp().sizes()[1..reg.mlp().sizes().len() - 1].to_vec(),
+            output_unit: "um".into(),
+            report: result.clone(),
+        };
+        let mut reg = reg;
+        reg.metadata = serde_json::to_string(&meta).map_err(ApiError::internal)?;
+        progress(0.97);
+        Ok((reg, result))
+    }
+}
+
+async fn model_info(State(state): State<AppState>, Path((machine, surface)): Path<(String, String)>) -> ApiResult<ApiJson<Value>> {
+    require_surface(&state, &machine, &surface).await?;
+    let (reg, meta) = load_model(&state, &machine, &surface).await?;
+    Ok(ApiJson(json!({
+        "machine": machine,
+        "surface": surface,
+        "kind": MODEL_KIND,
+        "layers": reg.mlp().sizes(),
+        "features": meta.features,
+        "tool_radius_mm": meta.tool_radius_mm,
+        "output_unit": meta.output_unit,
+        "training": meta.report,
+    })))
+}
+
+#[derive(Serialize)]
+struct PredictAnswer<'a> {
+    step_errors: &'a [f64],
+    tool_radius: f64,
+    unit: &'static str,
+    model: &'static str,
+}
+
+async fn predict(
+    State(state): State<AppState>,
+    Path((machine, surface)): Path<(String, String)>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<Response> {
+    check_id("machine", &machine)?;
+    check_id("surface", &surface)?;
+    require_machine(&state, &machine).await?;
+    require_surface(&state, &machine, &surface).await?;
+    let (reg, meta) = load_model(&state, &machine, &surface).await?;
+    let out = state
+        .jobs
+        .run(move || -> ApiResult<Vec<u8>> {
+            let (r, batch) = decode_segments(&headers, &body)?;
+            let r = r.unwrap_or(meta.tool_radius_mm);
+            let f = meta.features;
+            let (x, convex) = f.matrix(r, (0..batch.len()).map(|i| batch.get(i)))?;
+            let y = reg.predict_parallel(&x, 0)?;
+            let e: Vec<f64> = f.combine(&y, &convex).into_iter().map(|v| v / 1000.0).collect();
+            serde_json::to_vec(&PredictAnswer { step_errors: &e, tool_radius: r, unit: "mm", model: MODEL_KIND }).map_err(ApiError::internal)
+        })
+        .await??;
+    Ok(json_response(out))
+}

@@ -1,0 +1,365 @@
+//! Least-squares fitting of each effect's few parameters by re-simulation, on a weighted subset
+//! of the samples (weights 0/1 select the training folds of blocked cross-validation).
+//!
+//! Written here (no crate): every effect decouples per axis into 1-D searches or 2×2 linear
+//! least squares; argmin's solvers would add a dependency for a golden-section search.
+#![allow(clippy::needless_range_loop)] // index loops over parallel per-sample arrays read clearer
+
+use std::collections::HashMap;
+use std::sync::{Arc, Mutex};
+
+use crate::gap::effects::{Effect, Fitted, cyclic_phase, first_direction, thermal_basis};
+use crate::gap::plant::{AxisPlant, play};
+
+/// What a fit sees: the plant, one block's command, measurement and stored simulation.
+pub struct FitData<'a> {
+    /// One plant per axis.
+    pub plants: &'a [AxisPlant],
+    /// Command per axis, mm.
+    pub cmd: &'a [Vec<f64>],
+    /// Measured positions per axis, mm.
+    pub meas: &'a [Vec<f64>],
+    /// Stored simulation per axis, mm.
+    pub base: &'a [Vec<f64>],
+    /// Re-simulations already run, keyed by (effect tag, axis, parameter bits): the grid stage
+    /// of the 1-D searches is the same for every cross-validation fold.
+    pub cache: SimCache,
+}
+
+/// Memo of re-simulations shared by the folds of one diagnosis.
+#[derive(Default)]
+pub struct SimCache(Mutex<HashMap<SimKey, Arc<Vec<f64>>>>);
+
+/// (effect tag, axis, parameter bits).
+type SimKey = (u8, usize, u64);
+
+impl SimCache {
+    /// The cached simulation for `key`, computing it with `sim` on a miss.
+    pub fn get(&self, key: (u8, usize, f64), sim: impl FnOnce() -> Vec<f64>) -> Arc<Vec<f64>> {
+        let k = (key.0, key.1, key.2.to_bits());
+        if let Some(hit) = self.0.lock().expect("cache lock").get(&k) {
+            return hit.clone();
+        }
+        let value = Arc::new(sim());
+        self.0.lock().expect("cache lock").insert(k, value.clone());
+        value
+    }
+}
+
+/// Weighted sum of squared differences `Σ wᵢ (mᵢ − pᵢ)²` (mm²); NaN predictions count as +∞.
+pub fn sse(meas: &[f64], pred: &[f64], w: &[f64]) -> f64 {
+    let s: f64 = meas
+        .iter()
+        .zip(pred)
+        .zip(w)
+        .map(|((m, p), w)| w * (m - p) * (m - p))
+        .sum();
+    if s.is_nan() { f64::INFINITY } else { s }
+}
+
+/// Minimizes `f` on a grid, then by Brent's method (parabolic steps with golden-section
+/// fallback) between the best grid point's neighbours, to a relative tolerance of 1e-4 of the
+/// bracket or `iterations` evaluations. Returns `(x, f(x))` of the best point seen.
+/// Reference: R. P. Brent, "Algorithms for Minimization without Derivatives" (1973), ch. 5.
+/// Bad cases: a minimum narrower than the grid spacing elsewhere on the grid is missed.
+pub fn minimize_1d(mut f: impl FnMut(f64) -> f64, grid: &[f64], iterations: usize) -> (f64, f64) {
+    let vals: Vec<f64> = grid.iter().map(|&x| f(x)).collect();
+    let (k, _) =
+        vals.iter().enumerate().fold(
+            (0, f64::INFINITY),
+            |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc },
+        );
+    let (mut a, mut b) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
+    let cgold = 0.5 * (3.0 - 5f64.sqrt());
+    let tol = 1e-4 * (b - a).abs().max(1e-300);
+    let (mut x, mut fx) = (grid[k], vals[k]);
+    let (mut w, mut fw, mut v, mut fv) = (x, fx, x, fx);
+    let (mut d, mut e) = (0.0f64, 0.0f64);
+    for _ in 0..iterations {
+        let m = 0.5 * (a + b);
+        if (x - m).abs() <= 2.0 * tol - 0.5 * (b - a) {
+            break;
+        }
+        let mut golden = true;
+        if e.abs() > tol {
+            let r = (x - w) * (fx - fv);
+            let mut q = (x - v) * (fx - fw);
+            let mut p = (x - v) * q - (x - w) * r;
+            q = 2.0 * (q - r);
+            if q > 0.0 {
+                p = -p;
+            }
+            q = q.abs();
+            if p.abs() < (0.5 * q * e).abs() && p > q * (a - x) && p < q * (b - x) {
+                e = d;
+                d = p / q;
+                golden = false;
+            }
+        }
+        if golden {
+            e = if x < m { b - x } else { a - x };
+            d = cgold * e;
+        }
+        let u = if d.abs() >= tol {
+            x + d
+        } else {
+            x + tol * d.signum()
+        };
+        let fu = f(u);
+        if fu <= fx {
+            if u < x {
+                b = x
+            } else {
+                a = x
+            }
+            (v, fv, w, fw, x, fx) = (w, fw, x, fx, u, fu);
+        } else {
+            if u < x {
+                a = u
+            } else {
+                b = u
+            }
+            if fu <= fw || w == x {
+                (v, fv, w, fw) = (w, fw, u, fu);
+            } else if fu <= fv || v == x || v == w {
+                (v, fv) = (u, fu);
+            }
+        }
+    }
+    (x, fx)
+}
+
+fn quadratic_grid(max: f64, n: usize) -> Vec<f64> {
+    (0..n)
+        .map(|i| max * (i as f64 / (n - 1) as f64).powi(2))
+        .collect()
+}
+
+/// Fits `effect` on the samples with weight 1 in `w` (full re-simulation, loss on the subset).
+/// `hint` (the fit on all samples) settles discrete nuisance choices the subset cannot see.
+pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> Fitted {
+    let axes = data.plants.len();
+    match effect {
+        Effect::None => Fitted::None,
+        Effect::CoulombFriction => {
+            let f = (0..axes)
+                .map(|k| {
+                    let p = &data.plants[k];
+                    let max = match p.servo.kp_v {
+                        Some(kp) => kp * p.servo.kv * 0.1,
+                        None => p.servo.kv * 0.1,
+                    };
+                    let grid = quadratic_grid(max, 14);
+                    let loss = |f: f64| {
+                        if grid.contains(&f) {
+                            let sim = data
+                                .cache
+                                .get((1, k, f), || p.with_friction(f, &data.cmd[k]));
+                            sse(&data.meas[k], &sim, w)
+                        } else {
+                            sse(&data.meas[k], &p.with_friction(f, &data.cmd[k]), w)
+                        }
+                    };
+                    minimize_1d(loss, &grid, 14).0
+                })
+                .collect();
+            Fitted::CoulombFriction { f }
+        }
+        Effect::Backlash => {
+            let prior = match hint {
+                Some(Fitted::Backlash { start, .. }) => start.clone(),
+                _ => vec![0.0; axes],
+            };
+            let mut bs = Vec::new();
+            let mut starts = Vec::new();
+            for k in 0..axes {
+                let dir = first_direction(&data.base[k]);
+                // the start in the gap only shows before the gap first closes; when the
+                // training samples cannot tell (exact ties), the prior (full-data fit) wins
+                let best_start = |b: f64| -> (f64, f64) {
+                    let mut best = (
+                        prior[k],
+                        sse(
+                            &data.meas[k],
+                            &play(&data.base[k], b, prior[k] * 0.5 * b * dir),
+                            w,
+                        ),
+                    );
+                    for st in [-1.0, 0.0, 1.0] {
+                        let l = sse(
+                            &data.meas[k],
+                            &play(&data.base[k], b, st * 0.5 * b * dir),
+                            w,
+                        );
+                        if l < best.1 * (1.0 - 1e-12) {
+                            best = (st, l);
+                        }
+                    }
+                    best
+                };
+                let (b, _) = minimize_1d(|b| best_start(b).1, &quadratic_grid(0.25, 16), 16);
+                starts.push(best_start(b).0);
+                bs.push(b);
+            }
+            Fitted::Backlash {
+                b: bs,
+                start: starts,
+            }
+        }
+        Effect::ServoGainMismatch => {
+            let kv = (0..axes)
+                .map(|k| {
+                    let p = &data.plants[k];
+                    let grid: Vec<f64> = (0..13)
+                        .map(|i| p.servo.kv * 0.6 * (1.6f64 / 0.6).powf(i as f64 / 12.0))
+                        .collect();
+                    let loss = |kv: f64| {
+                        if grid.contains(&kv) {
+                            let sim = data.cache.get((3, k, kv), || p.with_kv(kv, &data.cmd[k]));
+                            sse(&data.meas[k], &sim, w)
+                        } else {
+                            sse(&data.meas[k], &p.with_kv(kv, &data.cmd[k]), w)
+                        }
+                    };
+                    minimize_1d(loss, &grid, 16).0
+                })
+                .collect();
+            Fitted::ServoGainMismatch { kv }
+        }
+        Effect::AxisSquareness => {
+            let mut best = (f64::NEG_INFINITY, Fitted::None);
+            for target in 0..axes {
+                for source in 0..axes {
+                    if target == source {
+                        continue;
+                    }
+                    let (mut rs, mut ss) = (0.0, 0.0);
+                    for i in 0..w.len() {
+                        let r = data.meas[target][i] - data.base[target][i];
+                        let s = data.base[source][i];
+                        rs += w[i] * r * s;
+                        ss += w[i] * s * s;
+                    }
+                    if ss > 0.0 && rs * rs / ss > best.0 {
+                        best = (
+                            rs * rs / ss,
+                            Fitted::AxisSquareness {
+                                target,
+                                source,
+                                alpha: rs / ss,
+                            },
+                        );
+                    }
+                }
+            }
+            best.1
+        }
+        Effect::ScaleError => {
+            let s = (0..axes)
+                .map(|k| {
+                    let (mut rx, mut xx) = (0.0, 0.0);
+                    for i in 0..w.len() {
+                        let x = data.base[k][i];
+                        rx += w[i] * (data.meas[k][i] - x) * x;
+                        xx += w[i] * x * x;
+                    }
+                    if xx > 0.0 { rx / xx } else { 0.0 }
+                })
+                .collect();
+            Fitted::ScaleError { s }
+        }
+        Effect::CyclicError => {
+            let (mut pitch, mut sn, mut cs) = (Vec::new(), Vec::new(), Vec::new());
+            for k in 0..axes {
+                let x = &data.base[k];
+                let r: Vec<f64> = data.meas[k].iter().zip(x).map(|(m, b)| m - b).collect();
+                let solve = |p: f64| -> (f64, f64, f64) {
+                    let (mut ss, mut sc, mut cc, mut rs, mut rc, mut rr) =
+                        (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+                    for i in 0..w.len() {
+                        if w[i] == 0.0 {
+                            continue;
+                        }
+                        let (s, c) = cyclic_phase(x[i], p).sin_cos();
+                        ss += s * s;
+                        sc += s * c;
+                        cc += c * c;
+                        rs += r[i] * s;
+                        rc += r[i] * c;
+                        rr += r[i] * r[i];
+                    }
+                    let det = ss * cc - sc * sc;
+                    if det <= 1e-12 * (ss * cc).max(1e-300) {
+                        return (0.0, 0.0, rr);
+                    }
+                    let a = (rs * cc - rc * sc) / det;
+                    let b = (rc * ss - rs * sc) / det;
+                    (a, b, rr - a * rs - b * rc)
+                };
+                // log-spaced pitches from 0.5 mm up to 64 mm or two thirds of the axis travel
+                // (a longer "period" is a smooth trend, not a cyclic error), in log-pitch
+                let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, &v| {
+                    (a.0.min(v), a.1.max(v))
+                });
+                let top = (hi - lo) / 1.5;
+                if top.is_nan() || top < 0.5 {
+                    pitch.push(1.0);
+                    sn.push(0.0);
+                    cs.push(0.0);
+                    continue;
+                }
+                let top = top.min(64.0);
+                let steps = ((top / 0.5).ln() / (128f64.ln() / 84.0)).ceil().max(2.0) as usize;
+                let grid: Vec<f64> = (0..=steps)
+                    .map(|i| 0.5f64.ln() + i as f64 * (top / 0.5).ln() / steps as f64)
+                    .collect();
+                let (lp, _) = minimize_1d(|lp| solve(lp.exp()).2, &grid, 14);
+                let (a, b, _) = solve(lp.exp());
+                pitch.push(lp.exp());
+                sn.push(a);
+                cs.push(b);
+            }
+            Fitted::CyclicError {
+                pitch,
+                sin: sn,
+                cos: cs,
+            }
+        }
+        Effect::ThermalDrift => {
+            let n = w.len();
+            let period = data.plants.first().map_or(0.0, |p| p.period_s);
+            let duration = (n.max(2) - 1) as f64 * period;
+            let fit_tau = |tau: f64| -> (Vec<f64>, f64) {
+                let mut rates = Vec::new();
+                let mut loss = 0.0;
+                for k in 0..axes {
+                    let (mut rg, mut gg, mut rr) = (0.0, 0.0, 0.0);
+                    for i in 0..n {
+                        let g = thermal_basis(i as f64 * period, tau);
+                        let r = data.meas[k][i] - data.base[k][i];
+                        rg += w[i] * r * g;
+                        gg += w[i] * g * g;
+                        rr += w[i] * r * r;
+                    }
+                    let rate = if gg > 0.0 { rg / gg } else { 0.0 };
+                    rates.push(rate);
+                    loss += rr - rate * rg;
+                }
+                (rates, loss)
+            };
+            let mut best = fit_tau(f64::INFINITY);
+            let mut best_tau = f64::INFINITY;
+            for m in [0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0, 5.0] {
+                let cand = fit_tau(m * duration);
+                if cand.1 < best.1 {
+                    best = cand;
+                    best_tau = m * duration;
+                }
+            }
+            Fitted::ThermalDrift {
+                rate: best.0,
+                tau: best_tau,
+            }
+        }
+    }
+}

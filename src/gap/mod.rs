@@ -1,0 +1,21 @@
+//! Sim-to-real gap diagnosis: where simulation and measurement part, which unmodelled effect
+//! causes it, and how far the gap shrinks once that effect is added (motion and part domains).
+pub mod effects;
+pub mod error;
+pub mod events;
+pub mod fit;
+pub mod motion;
+pub mod part;
+pub mod plant;
+pub mod programs;
+pub mod selfcheck;
+pub mod truth;
+
+pub use effects::{Effect, Fitted};
+pub use error::Error;
+pub use events::Span;
+pub use motion::{
+    GapStats, MotionBlock, MotionDiagnosis, MotionOptions, diagnose_motion,
+    diagnose_motion_structured,
+};
+pub use part::{PartBlock, PartDiagnosis, PartEffect, PartGrid, diagnose_part};

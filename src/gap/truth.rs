@@ -1,0 +1,277 @@
+//! Truth plants for the self-check, written independently of the diagnosis' plant: RK4 on the
+//! CONTRACT equations in absolute coordinates, smooth (tanh) Coulomb friction, and each effect
+//! drawn at realistic magnitudes — including effects outside the library.
+
+use rand::{Rng, RngExt};
+
+use crate::gap::Effect;
+use crate::motion::ServoAxis;
+
+/// The hidden effect of a truth plant.
+#[derive(Clone, Debug)]
+pub enum Truth {
+    /// The stored model is right.
+    None,
+    /// `dv/dt = a − f·tanh(v/0.05 mm/s)` (first-order axes: velocity dead zone `f` mm/s).
+    Friction(Vec<f64>),
+    /// Play of width `b` (mm), table initially centred in the gap or in contact.
+    Backlash(Vec<f64>, bool),
+    /// True position-loop gains, 1/s.
+    Mismatch(Vec<f64>),
+    /// `pos[t] += α·pos[s]`.
+    Squareness(usize, usize, f64),
+    /// Scale per axis.
+    Scale(Vec<f64>),
+    /// Pitch (mm), amplitude (mm), phase (rad) per axis.
+    Cyclic(Vec<f64>, Vec<f64>, Vec<f64>),
+    /// Saturating drift per axis: `D·(1 − e^{−t/τ})`, τ (s).
+    Thermal(Vec<f64>, f64),
+    /// Out of library: velocity-loop gain scaled on one axis.
+    VelocityLoopGain(usize, f64),
+    /// Out of library: straightness, `pos[1] += c·(pos[0] − x0)²`.
+    Straightness(f64, f64),
+}
+
+impl Truth {
+    /// The library effect this truth is (None for out-of-library plants and `Truth::None`).
+    pub fn effect(&self) -> Option<Effect> {
+        Some(match self {
+            Truth::None => Effect::None,
+            Truth::Friction(_) => Effect::CoulombFriction,
+            Truth::Backlash(..) => Effect::Backlash,
+            Truth::Mismatch(_) => Effect::ServoGainMismatch,
+            Truth::Squareness(..) => Effect::AxisSquareness,
+            Truth::Scale(_) => Effect::ScaleError,
+            Truth::Cyclic(..) => Effect::CyclicError,
+            Truth::Thermal(..) => Effect::ThermalDrift,
+            Truth::VelocityLoopGain(..) | Truth::Straightness(..) => return None,
+        })
+    }
+}
+
+/// Draws a truth plant of kind `kind` (0 = none, 1..=7 the library in `Effect::LIBRARY`
+/// order, 8 = out of library) at the magnitudes for these stored servo axes.
+pub fn draw(kind: usize, servo: &[ServoAxis], duration_s: f64, rng: &mut impl Rng) -> Truth {
+    let d = servo.len();
+    let sign = |rng: &mut dyn rand::Rng| if rng.random_bool(0.5) { 1.0 } else { -1.0 };
+    match kind {
+        0 => Truth::None,
+        1 => Truth::Friction(
+            servo
+                .iter()
+                .map(|s| {
+                    // static error of 1–5 µm through the loop gains
+                    let e = rng.random_range(0.001..0.005);
+                    s.kp_v.map_or(s.kv * e, |kp| kp * s.kv * e)
+                })
+                .collect(),
+        ),
+        2 => Truth::Backlash(
+            (0..d).map(|_| rng.random_range(0.004..0.025)).collect(),
+            rng.random_bool(0.5),
+        ),
+        3 => {
+            let k = rng.random_range(0..d.min(2));
+            let mut kv: Vec<f64> = servo.iter().map(|s| s.kv).collect();
+            kv[k] *= 1.0 + sign(rng) * rng.random_range(0.05..0.25);
+            Truth::Mismatch(kv)
+        }
+        4 => {
+            let (t, s) = if rng.random_bool(0.5) { (0, 1) } else { (1, 0) };
+            Truth::Squareness(t, s, sign(rng) * rng.random_range(10e-6..80e-6))
+        }
+        5 => Truth::Scale(
+            (0..d)
+                .map(|_| sign(rng) * rng.random_range(10e-6..80e-6))
+                .collect(),
+        ),
+        6 => Truth::Cyclic(
+            (0..d)
+                .map(|_| [4.0, 5.0, 8.0, 10.0, 16.0, 20.0][rng.random_range(0..6)])
+                .collect(),
+            (0..d).map(|_| rng.random_range(0.001..0.005)).collect(),
+            (0..d)
+                .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
+                .collect(),
+        ),
+        7 => {
+            // 3–20 µm reached at the end of the main block
+            let tau = duration_s * rng.random_range(0.3..3.0);
+            let gain = 1.0 / -(-duration_s / tau).exp_m1();
+            Truth::Thermal(
+                (0..d)
+                    .map(|_| sign(rng) * rng.random_range(0.003..0.020) * gain)
+                    .collect(),
+                tau,
+            )
+        }
+        _ => {
+            let k = rng.random_range(0..d.min(2));
+            if servo[k].kp_v.is_some() && rng.random_bool(0.5) {
+                Truth::VelocityLoopGain(k, rng.random_range(0.4..0.7))
+            } else {
+                Truth::Straightness(sign(rng) * rng.random_range(2e-6..6e-6), 0.0)
+            }
+        }
+    }
+}
+
+/// Independent RK4 integration of one axis (absolute coordinates `x, v, a, z`), 16+ sub-steps
+/// per period, FOH command, with `friction` (mm/s², or mm/s for first-order axes).
+fn rk4_axis(servo: &ServoAxis, cmd: &[f64], period: f64, friction: f64) -> Vec<f64> {
+    const VS: f64 = 0.05;
+    let stiff = friction / VS * period;
+    let sub = (16.0f64).max((stiff / 1.5).ceil()) as usize;
+    let h = period / sub as f64;
+    let deriv = |st: [f64; 4], r: f64, s: f64| -> [f64; 4] {
+        let [x, v, a, z] = st;
+        let v_ref = servo.kff * s + servo.kv * (r - x);
+        match servo.kp_v {
+            None => {
+                let dead = (v_ref.abs() - friction).max(0.0) * v_ref.signum();
+                [dead, 0.0, 0.0, 0.0]
+            }
+            Some(kp) => {
+                let ev = v_ref - v;
+                let a_cmd = kp * (ev + servo.ti_v.map_or(0.0, |ti| z / ti));
+                let (acc, da) = match servo.tc {
+                    Some(tc) => (a, (a_cmd - a) / tc),
+                    None => (a_cmd, 0.0),
+                };
+                [
+                    v,
+                    acc - friction * (v / VS).tanh(),
+                    da,
+                    if servo.ti_v.is_some() { ev } else { 0.0 },
+                ]
+            }
+        }
+    };
+    let mut st = [cmd[0], 0.0, 0.0, 0.0];
+    let mut out = vec![cmd[0]];
+    for w in cmd.windows(2) {
+        let s = (w[1] - w[0]) / period;
+        for k in 0..sub {
+            let t0 = k as f64 * h;
+            let r = |t: f64| w[0] + s * t;
+            let add = |a: [f64; 4], b: [f64; 4], f: f64| {
+                [
+                    a[0] + f * b[0],
+                    a[1] + f * b[1],
+                    a[2] + f * b[2],
+                    a[3] + f * b[3],
+                ]
+            };
+            let k1 = deriv(st, r(t0), s);
+            let k2 = deriv(add(st, k1, h / 2.0), r(t0 + h / 2.0), s);
+            let k3 = deriv(add(st, k2, h / 2.0), r(t0 + h / 2.0), s);
+            let k4 = deriv(add(st, k3, h), r(t0 + h), s);
+            for i in 0..4 {
+                st[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
+            }
+        }
+        out.push(st[0]);
+    }
+    out
+}
+
+/// Measured positions (per axis, mm) of the truth plant for `cmd`, plus Gaussian noise `sigma`.
+pub fn measure(
+    servo: &[ServoAxis],
+    truth: &Truth,
+    cmd: &[Vec<f64>],
+    period: f64,
+    sigma: f64,
+    rng: &mut impl Rng,
+) -> Vec<Vec<f64>> {
+    let mut pos: Vec<Vec<f64>> = servo
+        .iter()
+        .enumerate()
+        .map(|(k, s)| match truth {
+            Truth::Friction(f) => rk4_axis(s, &cmd[k], period, f[k]),
+            Truth::Mismatch(kv) => rk4_axis(
+                &ServoAxis {
+                    kv: kv[k],
+                    ..s.clone()
+                },
+                &cmd[k],
+                period,
+                0.0,
+            ),
+            Truth::VelocityLoopGain(j, factor) if *j == k => rk4_axis(
+                &ServoAxis {
+                    kp_v: s.kp_v.map(|kp| kp * factor),
+                    ..s.clone()
+                },
+                &cmd[k],
+                period,
+                0.0,
+            ),
+            _ => rk4_axis(s, &cmd[k], period, 0.0),
+        })
+        .collect();
+    let n = cmd[0].len();
+    match truth {
+        Truth::Backlash(b, centred) => {
+            for (k, col) in pos.iter_mut().enumerate() {
+                let half = b[k] / 2.0;
+                // in contact: the table lags the first motion already at rest
+                let first_dir = cmd[k]
+                    .iter()
+                    .find(|&&c| (c - cmd[k][0]).abs() > 1e-9)
+                    .map_or(1.0, |c| (c - cmd[k][0]).signum());
+                let mut table = if *centred {
+                    col[0]
+                } else {
+                    col[0] - first_dir * half
+                };
+                for x in col.iter_mut() {
+                    if *x - table > half {
+                        table = *x - half;
+                    } else if table - *x > half {
+                        table = *x + half;
+                    }
+                    *x = table;
+                }
+            }
+        }
+        Truth::Squareness(t, s, alpha) => {
+            let src = pos[*s].clone();
+            for (x, y) in pos[*t].iter_mut().zip(&src) {
+                *x += alpha * y;
+            }
+        }
+        Truth::Scale(s) => pos
+            .iter_mut()
+            .zip(s)
+            .for_each(|(col, s)| col.iter_mut().for_each(|x| *x *= 1.0 + s)),
+        Truth::Cyclic(p, a, ph) => {
+            for (k, col) in pos.iter_mut().enumerate() {
+                col.iter_mut()
+                    .for_each(|x| *x += a[k] * (std::f64::consts::TAU * *x / p[k] + ph[k]).sin());
+            }
+        }
+        Truth::Thermal(dr, tau) => {
+            for (k, col) in pos.iter_mut().enumerate() {
+                col.iter_mut()
+                    .enumerate()
+                    .for_each(|(i, x)| *x += dr[k] * (1.0 - (-(i as f64) * period / tau).exp()));
+            }
+        }
+        Truth::Straightness(c, _) => {
+            let x0 = cmd[0].iter().sum::<f64>() / n as f64;
+            let xs = pos[0].clone();
+            for (y, x) in pos[1].iter_mut().zip(&xs) {
+                *y += c * (x - x0) * (x - x0);
+            }
+        }
+        _ => {}
+    }
+    let normal = rand_distr::Normal::new(0.0, sigma.max(1e-12)).expect("valid sigma");
+    for col in pos.iter_mut() {
+        for x in col.iter_mut() {
+            *x += rng.sample(normal);
+        }
+    }
+    pos
+}

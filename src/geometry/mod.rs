@@ -1,0 +1,23 @@
+//! Surface and tool-path geometry: cubic splines through points, analytic height surfaces,
+//! iso-parametric path sampling, exact step error of ball-end finishing (seed 000, eq. 1) and
+//! the step-error network's input features.
+
+mod brent;
+mod error;
+mod height_surface;
+mod paths;
+mod spline;
+mod step_error;
+mod step_features;
+pub mod vec3;
+
+pub use brent::minimize as brent_minimize;
+pub use error::Error;
+pub use height_surface::{HeightJet, HeightSurface, HeightTerm};
+pub use paths::{MAX_SEGMENTS, PathPlan, grid_segments, height_surface_segments};
+pub use spline::{CubicSpline3, Parameterization};
+pub use step_error::{StepError, StepErrorSegment, StepErrorSolver, step_error, step_errors};
+pub use step_features::{FeatureFrame, StepFeatures};
+
+#[cfg(test)]
+mod step_error_tests;

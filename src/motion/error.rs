@@ -1,0 +1,74 @@
+//! The one error type of the `motion` core.
+
+/// Everything that can go wrong in the motion core. Variants name the field and what to fix,
+/// so `api` can map them to 4xx answers without rewording.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum Error {
+    /// A servo parameter is out of its physical range (non-finite, non-positive, kff outside 0..1).
+    #[error("servo parameter '{field}' = {value} is invalid: {reason}")]
+    InvalidServo {
+        /// Parameter name as in the CONTRACT ("kv", "kff", "kp_v", "ti_v", "tc").
+        field: &'static str,
+        /// The offending value.
+        value: f64,
+        /// What to fix, in one sentence.
+        reason: &'static str,
+    },
+    /// The cascade's closed loop has a pole with non-negative real part.
+    #[error(
+        "servo axis is unstable (closed-loop pole with real part {max_real_part:.3} 1/s): lower kv or tc, or raise kp_v / ti_v"
+    )]
+    UnstableServo {
+        /// Largest real part of the closed-loop poles, 1/s.
+        max_real_part: f64,
+    },
+    /// The interpolation period is not a positive finite number of seconds.
+    #[error("period_s = {0} is invalid: it must be a positive finite number of seconds")]
+    InvalidPeriod(f64),
+    /// The command sequence is empty.
+    #[error("the command is empty: send at least one sample")]
+    EmptyCommand,
+    /// A command sample is NaN or infinite.
+    #[error("command sample {index} is not a finite number")]
+    NonFiniteCommand {
+        /// Index of the first bad sample.
+        index: usize,
+    },
+    /// A G/M code, word or keyword outside the supported subset (never skipped silently).
+    #[error("line {line}: unsupported code {code}")]
+    UnsupportedCode { line: usize, code: String },
+    /// A malformed or geometrically impossible block (bad number, arc radius mismatch, ...).
+    #[error("line {line}: {message}")]
+    Gcode { line: usize, message: String },
+    /// The machine definition cannot drive this program (missing axis, bad geometry, ...).
+    #[error("machine definition: {0}")]
+    InvalidMachine(String),
+    /// A numeric argument of a core function is out of range.
+    #[error("parameter {field}: {message}")]
+    InvalidParameter { field: String, message: String },
+    /// The program needs more interpolation periods than the caller allows.
+    #[error(
+        "the program needs {periods} interpolation periods, more than the limit of {limit}: \
+         raise period_s or split the program"
+    )]
+    TooManyPeriods { periods: u64, limit: usize },
+    /// The program contains no motion at all.
+    #[error("the program contains no motion (no G0/G1/G2/G3 block moves an axis)")]
+    EmptyProgram,
+}
+
+impl Error {
+    pub(crate) fn gcode(line: usize, message: impl Into<String>) -> Self {
+        Error::Gcode {
+            line,
+            message: message.into(),
+        }
+    }
+    pub(crate) fn parameter(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Error::InvalidParameter {
+            field: field.into(),
+            message: message.into(),
+        }
+    }
+}

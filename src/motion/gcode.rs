@@ -1,0 +1,844 @@
+//! G-code reader: an ISO 6983 / Fanuc-style subset with Sinumerik TRAORI/TRAFOOF.
+//!
+//! Hand-written: the `gcode` crate panics on inputs such as `M0444444444` under fuzzing
+//! (see DESIGN.md), and we need line-accurate typed errors for anything unsupported.
+//!
+//! Supported: G0 G1 G2 G3 (IJK or R, full circles, helical third axis), G4 dwell (X s or
+//! P ms), G17/G18/G19, G20/G21, G90/G91, G93/G94, G43.4/G49 and TRAORI/TRAFOOF (RTCP on/off),
+//! the harmless cancels G40 G80 and G54 (taken as program zero = machine zero), words
+//! X Y Z A C I J K R F N S T H D P, M0..M9 and M30 (M2/M30 end the program), comments in
+//! parentheses and after `;`, `%` and `O` lines. Everything else is an
+//! [`Error::UnsupportedCode`] naming the line and the code.
+
+use super::error::Error;
+
+/// Working plane of circular interpolation (G17, G18, G19).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Plane {
+    /// G17: arcs in X-Y, helix along Z.
+    Xy,
+    /// G18: arcs in Z-X, helix along Y.
+    Zx,
+    /// G19: arcs in Y-Z, helix along X.
+    Yz,
+}
+
+impl Plane {
+    /// Indices (first, second, normal) of the plane's axes in `[x, y, z]`, ordered so that
+    /// first × second = normal (right-handed; G3 turns from first towards second).
+    pub fn axes(self) -> (usize, usize, usize) {
+        match self {
+            Plane::Xy => (0, 1, 2),
+            Plane::Zx => (2, 0, 1),
+            Plane::Yz => (1, 2, 0),
+        }
+    }
+}
+
+/// A programmed position: linear words in mm (after G20 conversion), rotary in degrees.
+#[derive(Clone, Copy, Debug, PartialEq, Default)]
+pub struct Pose {
+    /// X, Y, Z in mm (tool-tip in the workpiece frame when RTCP is on, else machine axes).
+    pub xyz: [f64; 3],
+    /// A axis, degrees.
+    pub a: f64,
+    /// C axis, degrees.
+    pub c: f64,
+}
+
+/// How a block's duration follows from its F word.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Feed {
+    /// G0: the machine's rapid rate (and per-axis velocity limits).
+    Rapid,
+    /// G94: feed rate in mm/min.
+    PerMinute(f64),
+    /// G93: the block takes 1/F minutes.
+    InverseTime(f64),
+}
+
+/// Geometric kind of a block.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Motion {
+    /// Straight line (G0, G1) from start to end in program coordinates.
+    Linear,
+    /// Circular / helical arc (G2, G3) about `center` (mm, program coordinates; only the
+    /// plane components matter). `sweep_rad` > 0 turns counter-clockwise seen from the
+    /// plane normal (G3), < 0 clockwise (G2); a full circle has |sweep_rad| = 2π.
+    Arc {
+        plane: Plane,
+        center: [f64; 3],
+        sweep_rad: f64,
+    },
+    /// G4: stand still for `seconds`.
+    Dwell { seconds: f64 },
+}
+
+/// One executable block after modal state is resolved.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Block {
+    /// 1-based source line.
+    pub line: usize,
+    pub motion: Motion,
+    pub start: Pose,
+    pub end: Pose,
+    pub feed: Feed,
+    /// RTCP (G43.4 / TRAORI) active: XYZ are tool-tip coordinates in the workpiece frame.
+    pub rtcp: bool,
+}
+
+/// A parsed program: the executable blocks in order.
+#[derive(Clone, Debug, PartialEq, Default)]
+pub struct Program {
+    pub blocks: Vec<Block>,
+    /// First line that programs the A axis, if any.
+    pub first_a_line: Option<usize>,
+    /// First line that programs the C axis, if any.
+    pub first_c_line: Option<usize>,
+}
+
+const MM_PER_INCH: f64 = 25.4;
+/// Largest coordinate magnitude accepted (mm or degrees); beyond this a number is a typo.
+const MAX_ABS_VALUE: f64 = 1.0e7;
+
+#[derive(Clone, Copy, PartialEq, Eq, Debug)]
+enum MotionMode {
+    Rapid,
+    Linear,
+    ArcCw,
+    ArcCcw,
+}
+
+struct Modal {
+    motion: Option<MotionMode>,
+    plane: Plane,
+    inch: bool,
+    incremental: bool,
+    inverse_time: bool,
+    feed_mm_min: Option<f64>,
+    rtcp: bool,
+    pose: Pose,
+}
+
+/// Words of one line, each at most once.
+#[derive(Default)]
+struct Words {
+    vals: [Option<f64>; 26],
+}
+
+impl Words {
+    fn get(&self, letter: u8) -> Option<f64> {
+        self.vals[(letter - b'A') as usize]
+    }
+}
+
+/// Parses a whole program.
+///
+/// The machine starts at program zero (X0 Y0 Z0 A0 C0), in G90 G17 G21 G94, RTCP off, with
+/// no motion mode and no feed. Zero-length moves are kept (after an RTCP switch they
+/// still move the machine); the interpolator drops those that move nothing.
+/// Never panics; every rejected input yields a typed [`Error`] naming the 1-based line.
+pub fn parse(text: &str) -> Result<Program, Error> {
+    let mut m = Modal {
+        motion: None,
+        plane: Plane::Xy,
+        inch: false,
+        incremental: false,
+        inverse_time: false,
+        feed_mm_min: None,
+        rtcp: false,
+        pose: Pose::default(),
+    };
+    let mut prog = Program::default();
+    for (idx, raw) in text.lines().enumerate() {
+        let line = idx + 1;
+        let ended = parse_line(raw, line, &mut m, &mut prog)?;
+        if ended {
+            break;
+        }
+    }
+    Ok(prog)
+}
+
+fn strip_comments(raw: &str, line: usize) -> Result<String, Error> {
+    let mut out = String::with_capacity(raw.len());
+    let mut depth = false;
+    for ch in raw.chars() {
+        match ch {
+            ';' if !depth => break,
+            '(' if !depth => depth = true,
+            '(' => return Err(Error::gcode(line, "nested '(' in a comment")),
+            ')' if depth => depth = false,
+            ')' => return Err(Error::gcode(line, "')' without a matching '('")),
+            _ if depth => {}
+            _ => out.push(ch.to_ascii_uppercase()),
+        }
+    }
+    if depth {
+        return Err(Error::gcode(line, "comment '(' is not closed on this line"));
+    }
+    Ok(out)
+}
+
+/// Reads one line; returns true when the program ends (M2/M30).
+fn parse_line(raw: &str, line: usize, m: &mut Modal, prog: &mut Program) -> Result<bool, Error> {
+    let text = strip_comments(raw, line)?;
+    let bytes = text.as_bytes();
+    let trimmed = text.trim();
+    if trimmed.is_empty() || trimmed == "%" {
+        return Ok(false);
+    }
+    if trimmed.starts_with('O') || trimmed.starts_with(':') {
+        // Program number line (Fanuc O1234 or :1234): no action.
+        return Ok(false);
+    }
+    let mut words = Words::default();
+    let mut gcodes: Vec<u32> = Vec::new();
+    let mut mcodes: Vec<u32> = Vec::new();
+    let mut keywords: Vec<&'static str> = Vec::new();
+    let mut i = 0;
+    while i < bytes.len() {
+        let b = bytes[i];
+        if b.is_ascii_whitespace() {
+            i += 1;
+            continue;
+        }
+        if !b.is_ascii_uppercase() {
+            let code: String = text[i..]
+                .chars()
+                .next()
+                .map(String::from)
+                .unwrap_or_default();
+            return Err(Error::UnsupportedCode { line, code });
+        }
+        // A run of letters is a keyword (TRAORI, TRAFOOF, ...).
+        let mut j = i + 1;
+        while j < bytes.len() && bytes[j].is_ascii_uppercase() {
+            j += 1;
+        }
+        if j > i + 1 {
+            let kw = &text[i..j];
+            match kw {
+                "TRAORI" => keywords.push("TRAORI"),
+                "TRAFOOF" => keywords.push("TRAFOOF"),
+                _ => {
+                    return Err(Error::UnsupportedCode {
+                        line,
+                        code: kw.to_string(),
+                    });
+                }
+            }
+            i = j;
+            continue;
+        }
+        // Letter + number (spaces allowed between them, as Fanuc does).
+        let mut k = i + 1;
+        while k < bytes.len() && bytes[k] == b' ' {
+            k += 1;
+        }
+        let num_start = k;
+        if k < bytes.len() && (bytes[k] == b'+' || bytes[k] == b'-') {
+            k += 1;
+        }
+        let mut digits = 0;
+        let mut dots = 0;
+        while k < bytes.len() && (bytes[k].is_ascii_digit() || bytes[k] == b'.') {
+            if bytes[k] == b'.' {
+                dots += 1;
+            } else {
+                digits += 1;
+            }
+            k += 1;
+        }
+        let letter = b as char;
+        if digits == 0 || dots > 1 {
+            return Err(Error::gcode(
+                line,
+                format!("word '{letter}' needs a number (e.g. {letter}10.5)"),
+            ));
+        }
+        let value: f64 = text[num_start..k]
+            .parse()
+            .map_err(|_| Error::gcode(line, format!("bad number after '{letter}'")))?;
+        if !value.is_finite() || (value.abs() > MAX_ABS_VALUE && b != b'G' && b != b'M') {
+            return Err(Error::gcode(
+                line,
+                format!("value of '{letter}' is out of range (|v| <= {MAX_ABS_VALUE})"),
+            ));
+        }
+        i = k;
+        match b {
+            b'G' => gcodes.push(code_times_ten(value, 'G', line)?),
+            b'M' => {
+                let c = code_times_ten(value, 'M', line)?;
+                if c % 10 != 0 {
+                    return Err(Error::UnsupportedCode {
+                        line,
+                        code: format!("M{value}"),
+                    });
+                }
+                mcodes.push(c / 10);
+            }
+            b'N' => {}
+            b'X' | b'Y' | b'Z' | b'A' | b'C' | b'I' | b'J' | b'K' | b'R' | b'F' | b'S' | b'T'
+            | b'H' | b'D' | b'P' => {
+                let slot = &mut words.vals[(b - b'A') as usize];
+                if slot.is_some() {
+                    return Err(Error::gcode(line, format!("word '{letter}' appears twice")));
+                }
+                *slot = Some(value);
+            }
+            _ => {
+                return Err(Error::UnsupportedCode {
+                    line,
+                    code: format!("{letter}{}", &text[num_start..k]),
+                });
+            }
+        }
+    }
+    apply_line(line, m, prog, &words, &gcodes, &mcodes, &keywords)
+}
+
+/// G/M number × 10 as an integer (G43.4 → 434); rejects more than one decimal.
+fn code_times_ten(value: f64, letter: char, line: usize) -> Result<u32, Error> {
+    let t = value * 10.0;
+    if !(0.0..10000.0).contains(&t) || (t - t.round()).abs() > 1e-6 {
+        return Err(Error::UnsupportedCode {
+            line,
+            code: format!("{letter}{value}"),
+        });
+    }
+    Ok(t.round() as u32)
+}
+
+fn apply_line(
+    line: usize,
+    m: &mut Modal,
+    prog: &mut Program,
+    w: &Words,
+    gcodes: &[u32],
+    mcodes: &[u32],
+    keywords: &[&'static str],
+) -> Result<bool, Error> {
+    let mut motion_this_line: Option<MotionMode> = None;
+    let mut dwell = false;
+    for &g in gcodes {
+        let set_motion = |mm: MotionMode, cur: &mut Option<MotionMode>| {
+            if cur.is_some() {
+                return Err(Error::gcode(
+                    line,
+                    "two motion codes (G0/G1/G2/G3) on one line",
+                ));
+            }
+            *cur = Some(mm);
+            Ok(())
+        };
+        match g {
+            0 => set_motion(MotionMode::Rapid, &mut motion_this_line)?,
+            10 => set_motion(MotionMode::Linear, &mut motion_this_line)?,
+            20 => set_motion(MotionMode::ArcCw, &mut motion_this_line)?,
+            30 => set_motion(MotionMode::ArcCcw, &mut motion_this_line)?,
+            40 => dwell = true,
+            170 => m.plane = Plane::Xy,
+            180 => m.plane = Plane::Zx,
+            190 => m.plane = Plane::Yz,
+            200 => m.inch = true,
+            210 => m.inch = false,
+            400 | 540 | 800 => {}
+            434 => m.rtcp = true,
+            490 => m.rtcp = false,
+            900 => m.incremental = false,
+            910 => m.incremental = true,
+            930 => {
+                if !m.inverse_time {
+                    m.feed_mm_min = None;
+                }
+                m.inverse_time = true
+            }
+            940 => {
+                if m.inverse_time {
+                    m.feed_mm_min = None;
+                }
+                m.inverse_time = false
+            }
+            _ => {
+                let code = if g % 10 == 0 {
+                    format!("G{}", g / 10)
+                } else {
+                    format!("G{}.{}", g / 10, g % 10)
+                };
+                return Err(Error::UnsupportedCode { line, code });
+            }
+        }
+    }
+    for kw in keywords {
+        m.rtcp = *kw == "TRAORI";
+    }
+    let mut ends = false;
+    for &mc in mcodes {
+        match mc {
+            0..=1 | 3..=9 => {}
+            2 | 30 => ends = true,
+            _ => {
+                return Err(Error::UnsupportedCode {
+                    line,
+                    code: format!("M{mc}"),
+                });
+            }
+        }
+    }
+    let scale = if m.inch { MM_PER_INCH } else { 1.0 };
+    if dwell {
+        if motion_this_line.is_some() {
+            return Err(Error::gcode(
+                line,
+                "G4 dwell cannot share a line with motion",
+            ));
+        }
+        let seconds = match (w.get(b'X'), w.get(b'P')) {
+            (Some(x), None) => x,
+            (None, Some(p)) => p / 1000.0,
+            _ => {
+                return Err(Error::gcode(
+                    line,
+                    "G4 needs exactly one of X (seconds) or P (milliseconds)",
+                ));
+            }
+        };
+        if seconds < 0.0 {
+            return Err(Error::gcode(line, "G4 dwell time must be >= 0"));
+        }
+        if seconds > 0.0 {
+            prog.blocks.push(Block {
+                line,
+                motion: Motion::Dwell { seconds },
+                start: m.pose,
+                end: m.pose,
+                feed: Feed::Rapid,
+                rtcp: m.rtcp,
+            });
+        }
+        return Ok(ends);
+    }
+    if let Some(mm) = motion_this_line {
+        m.motion = Some(mm);
+    }
+    // F word.
+    if let Some(f) = w.get(b'F') {
+        if f <= 0.0 {
+            return Err(Error::gcode(line, "F must be > 0"));
+        }
+        m.feed_mm_min = Some(if m.inverse_time { f } else { f * scale });
+    }
+    let has_axis = [b'X', b'Y', b'Z', b'A', b'C']
+        .iter()
+        .any(|&l| w.get(l).is_some());
+    let has_arc_words = [b'I', b'J', b'K', b'R'].iter().any(|&l| w.get(l).is_some());
+    if !has_axis {
+        if has_arc_words {
+            return Err(Error::gcode(line, "I/J/K/R given without an end point"));
+        }
+        return Ok(ends);
+    }
+    let mode = m.motion.ok_or_else(|| {
+        Error::gcode(
+            line,
+            "axis words without a motion mode: add G0, G1, G2 or G3",
+        )
+    })?;
+    if w.get(b'A').is_some() && prog.first_a_line.is_none() {
+        prog.first_a_line = Some(line);
+    }
+    if w.get(b'C').is_some() && prog.first_c_line.is_none() {
+        prog.first_c_line = Some(line);
+    }
+    let start = m.pose;
+    let mut end = start;
+    for (k, l) in [b'X', b'Y', b'Z'].iter().enumerate() {
+        if let Some(v) = w.get(*l) {
+            end.xyz[k] = if m.incremental {
+                start.xyz[k] + v * scale
+            } else {
+                v * scale
+            };
+        }
+    }
+    if let Some(v) = w.get(b'A') {
+        end.a = if m.incremental { start.a + v } else { v };
+    }
+    if let Some(v) = w.get(b'C') {
+        end.c = if m.incremental { start.c + v } else { v };
+    }
+    let feed = if mode == MotionMode::Rapid {
+        Feed::Rapid
+    } else if m.inverse_time {
+        // G93: F must be programmed on every feed block.
+        match w.get(b'F') {
+            Some(f) => Feed::InverseTime(f),
+            None => {
+                return Err(Error::gcode(
+                    line,
+                    "G93 inverse-time mode needs F on every G1/G2/G3 block",
+                ));
+            }
+        }
+    } else {
+        match m.feed_mm_min {
+            Some(f) => Feed::PerMinute(f),
+            None => {
+                return Err(Error::gcode(
+                    line,
+                    "feed move without a feed rate: add an F word",
+                ));
+            }
+        }
+    };
+    let motion = match mode {
+        MotionMode::Rapid | MotionMode::Linear => {
+            if has_arc_words {
+                return Err(Error::gcode(line, "I/J/K/R are only allowed with G2/G3"));
+            }
+            Motion::Linear
+        }
+        MotionMode::ArcCw | MotionMode::ArcCcw => arc_geometry(
+            line,
+            m.plane,
+            mode == MotionMode::ArcCw,
+            &start,
+            &end,
+            w,
+            scale,
+        )?,
+    };
+    m.pose = end;
+    prog.blocks.push(Block {
+        line,
+        motion,
+        start,
+        end,
+        feed,
+        rtcp: m.rtcp,
+    });
+    Ok(ends)
+}
+
+/// Centre and signed sweep of a G2/G3 block from IJK (centre offsets from the start,
+/// always incremental) or R (negative R: the arc longer than 180°).
+fn arc_geometry(
+    line: usize,
+    plane: Plane,
+    clockwise: bool,
+    start: &Pose,
+    end: &Pose,
+    w: &Words,
+    scale: f64,
+) -> Result<Motion, Error> {
+    let (p0, p1, _) = plane.axes();
+    let (s0, s1) = (start.xyz[p0], start.xyz[p1]);
+    let (e0, e1) = (end.xyz[p0], end.xyz[p1]);
+    let chord = ((e0 - s0).powi(2) + (e1 - s1).powi(2)).sqrt();
+    let ijk = [w.get(b'I'), w.get(b'J'), w.get(b'K')];
+    let has_ijk = ijk.iter().any(Option::is_some);
+    let mut center = start.xyz;
+    match (w.get(b'R'), has_ijk) {
+        (Some(_), true) => return Err(Error::gcode(line, "give either R or I/J/K, not both")),
+        (None, false) => {
+            return Err(Error::gcode(
+                line,
+                "G2/G3 needs I/J/K (centre) or R (radius)",
+            ));
+        }
+        (None, true) => {
+            for (k, v) in ijk.iter().enumerate() {
+                center[k] = start.xyz[k] + v.unwrap_or(0.0) * scale;
+            }
+        }
+        (Some(r), false) => {
+            let r_mm = r * scale;
+            if chord < 1e-9 {
+                return Err(Error::gcode(
+                    line,
+                    "R-format arc with start == end is ambiguous: use I/J/K for a full circle",
+                ));
+            }
+            let half = chord / 2.0;
+            let tol = 1e-6_f64.max(1e-6 * r_mm.abs());
+            if r_mm.abs() < half - tol {
+                return Err(Error::gcode(
+                    line,
+                    format!("arc radius R{r} is smaller than half the chord ({half:.4} mm)"),
+                ));
+            }
+            let h = (r_mm * r_mm - half * half).max(0.0).sqrt();
+            let (d0, d1) = ((e0 - s0) / chord, (e1 - s1) / chord);
+            // Left of the chord for G3 with R > 0; mirrored for G2 and for R < 0.
+            let mut side = if clockwise { -1.0 } else { 1.0 };
+            if r_mm < 0.0 {
+                side = -side;
+            }
+            center[p0] = (s0 + e0) / 2.0 + side * h * -d1;
+            center[p1] = (s1 + e1) / 2.0 + side * h * d0;
+        }
+    }
+    let (c0, c1) = (center[p0], center[p1]);
+    let r_start = ((s0 - c0).powi(2) + (s1 - c1).powi(2)).sqrt();
+    let r_end = ((e0 - c0).powi(2) + (e1 - c1).powi(2)).sqrt();
+    if r_start < 1e-6 {
+        return Err(Error::gcode(line, "arc radius is zero: check I/J/K"));
+    }
+    let tol = 0.005_f64.max(1e-3 * r_start);
+    if (r_end - r_start).abs() > tol {
+        return Err(Error::gcode(
+            line,
+            format!(
+                "arc end point is not on the circle: radius at start {r_start:.4} mm, at end \
+                 {r_end:.4} mm (tolerance {tol:.4} mm)"
+            ),
+        ));
+    }
+    let th0 = (s1 - c1).atan2(s0 - c0);
+    let th1 = (e1 - c1).atan2(e0 - c0);
+    let tau = std::f64::consts::TAU;
+    let sweep = if chord < 1e-9_f64.max(1e-9 * r_start) {
+        if clockwise { -tau } else { tau }
+    } else if clockwise {
+        -(th0 - th1).rem_euclid(tau)
+    } else {
+        (th1 - th0).rem_euclid(tau)
+    };
+    Ok(Motion::Arc {
+        plane,
+        center,
+        sweep_rad: sweep,
+    })
+}
+
+impl Block {
+    /// Program pose at fraction `u` ∈ [0, 1] of the block (lines and rotary axes linear in
+    /// u; arcs at constant angular rate with the radius and helix axis linear in u).
+    /// `u >= 1` returns exactly `end`.
+    pub fn pose_at(&self, u: f64) -> Pose {
+        if u >= 1.0 {
+            return self.end;
+        }
+        let u = u.max(0.0);
+        let (s, e) = (&self.start, &self.end);
+        let a = s.a + u * (e.a - s.a);
+        let c = s.c + u * (e.c - s.c);
+        let xyz = match self.motion {
+            Motion::Linear => [
+                s.xyz[0] + u * (e.xyz[0] - s.xyz[0]),
+                s.xyz[1] + u * (e.xyz[1] - s.xyz[1]),
+                s.xyz[2] + u * (e.xyz[2] - s.xyz[2]),
+            ],
+            Motion::Dwell { .. } => s.xyz,
+            Motion::Arc {
+                plane,
+                center,
+                sweep_rad,
+            } => {
+                let (p0, p1, n) = plane.axes();
+                let r0 =
+                    ((s.xyz[p0] - center[p0]).powi(2) + (s.xyz[p1] - center[p1]).powi(2)).sqrt();
+                let r1 =
+                    ((e.xyz[p0] - center[p0]).powi(2) + (e.xyz[p1] - center[p1]).powi(2)).sqrt();
+                let th0 = (s.xyz[p1] - center[p1]).atan2(s.xyz[p0] - center[p0]);
+                let th = th0 + u * sweep_rad;
+                let r = r0 + u * (r1 - r0);
+                let mut out = [0.0; 3];
+                out[p0] = center[p0] + r * th.cos();
+                out[p1] = center[p1] + r * th.sin();
+                out[n] = s.xyz[n] + u * (e.xyz[n] - s.xyz[n]);
+                out
+            }
+        };
+        Pose { xyz, a, c }
+    }
+
+    /// Length of the block's path in program XYZ (mm): chord for lines, helix length
+    /// √((r̄·|sweep|)² + Δh²) for arcs with mean radius r̄, 0 for dwells.
+    /// Reference: seed 003 eq. 2 (L_i, tool-tip displacement of a block).
+    pub fn xyz_length(&self) -> f64 {
+        let (s, e) = (&self.start.xyz, &self.end.xyz);
+        match self.motion {
+            Motion::Linear => dist3(s, e),
+            Motion::Dwell { .. } => 0.0,
+            Motion::Arc {
+                plane,
+                center,
+                sweep_rad,
+            } => {
+                let (p0, p1, n) = plane.axes();
+                let r0 = ((s[p0] - center[p0]).powi(2) + (s[p1] - center[p1]).powi(2)).sqrt();
+                let r1 = ((e[p0] - center[p0]).powi(2) + (e[p1] - center[p1]).powi(2)).sqrt();
+                let planar = 0.5 * (r0 + r1) * sweep_rad.abs();
+                (planar * planar + (e[n] - s[n]).powi(2)).sqrt()
+            }
+        }
+    }
+}
+
+pub(crate) fn dist3(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+    use std::f64::consts::{PI, TAU};
+
+    fn one(text: &str) -> Block {
+        let p = parse(text).unwrap();
+        p.blocks.last().unwrap().clone()
+    }
+
+    #[test]
+    fn modal_state_units_and_incremental() {
+        let p = parse(
+            "N10 G21 G90 G94 F600 (set up)\nG1 X10 Y5 ; first\nY7\nG91 X1\nG20 G90 G1 X1 F10",
+        )
+        .unwrap();
+        assert_eq!(p.blocks.len(), 4);
+        assert_eq!(p.blocks[0].end.xyz, [10.0, 5.0, 0.0]);
+        assert_eq!(p.blocks[1].end.xyz, [10.0, 7.0, 0.0]);
+        assert_eq!(p.blocks[2].end.xyz, [11.0, 7.0, 0.0]);
+        assert_eq!(p.blocks[3].end.xyz[0], 25.4);
+        assert_eq!(p.blocks[3].feed, Feed::PerMinute(254.0));
+        assert_eq!(p.blocks[0].line, 2);
+    }
+
+    #[test]
+    fn arcs_ijk_r_full_circle_and_helix() {
+        // Quarter CCW in XY by IJK and by R: same centre and sweep.
+        let a = one("G17 G1 X10 Y0 F100\nG3 X0 Y10 I-10 J0");
+        let b = one("G17 G1 X10 Y0 F100\nG3 X0 Y10 R10");
+        for blk in [&a, &b] {
+            let Motion::Arc {
+                center, sweep_rad, ..
+            } = blk.motion
+            else {
+                panic!()
+            };
+            assert!(
+                center[0].abs() < 1e-12 && center[1].abs() < 1e-12,
+                "{center:?}"
+            );
+            assert!((sweep_rad - PI / 2.0).abs() < 1e-12);
+        }
+        // R < 0: the long way round (270°), CW.
+        let c = one("G1 X10 Y0 F100\nG2 X0 Y10 R-10");
+        let Motion::Arc { sweep_rad, .. } = c.motion else {
+            panic!()
+        };
+        assert!((sweep_rad + 1.5 * PI).abs() < 1e-12, "{sweep_rad}");
+        // Full helical circle in G17: end == start in XY, Z climbs.
+        let h = one("G1 X5 Y0 F100\nG2 X5 Y0 Z-2 I-5 J0");
+        let Motion::Arc { sweep_rad, .. } = h.motion else {
+            panic!()
+        };
+        assert!((sweep_rad + TAU).abs() < 1e-12);
+        let mid = h.pose_at(0.5);
+        assert!((mid.xyz[0] + 5.0).abs() < 1e-9 && (mid.xyz[2] + 1.0).abs() < 1e-12);
+        assert!((h.xyz_length() - (TAU * 5.0f64).hypot(2.0)).abs() < 1e-9);
+        // G18 (ZX plane): G3 turns from Z towards X.
+        let g = one("G18 G1 X0 Z10 F100\nG3 X10 Z0 K-10");
+        let Motion::Arc { sweep_rad, .. } = g.motion else {
+            panic!()
+        };
+        assert!((sweep_rad - PI / 2.0).abs() < 1e-12, "{sweep_rad}");
+        let m = g.pose_at(0.5);
+        assert!((m.xyz[0] - 10.0 * (PI / 4.0).sin()).abs() < 1e-9);
+    }
+
+    #[test]
+    fn rtcp_and_rotary_words() {
+        let p = parse("G43.4 H1\nG1 X1 A10 C20 F500\nG49\nG1 X2\nTRAORI\nG1 C30\nTRAFOOF\nG1 A0")
+            .unwrap();
+        let rtcp: Vec<bool> = p.blocks.iter().map(|b| b.rtcp).collect();
+        assert_eq!(rtcp, vec![true, false, true, false]);
+        assert_eq!(p.first_a_line, Some(2));
+        assert_eq!(p.first_c_line, Some(2));
+        assert_eq!(p.blocks[2].end.c, 30.0);
+    }
+
+    #[test]
+    fn inverse_time_needs_f_per_block_and_dwell() {
+        let e = parse("G93 G1 X1 F2\nG1 X2").unwrap_err();
+        assert_eq!(
+            e,
+            Error::gcode(2, "G93 inverse-time mode needs F on every G1/G2/G3 block")
+        );
+        let p = parse("G93 G1 X1 F2\nG4 P500\nG94 G1 X3 F100").unwrap();
+        assert_eq!(p.blocks[0].feed, Feed::InverseTime(2.0));
+        assert_eq!(p.blocks[1].motion, Motion::Dwell { seconds: 0.5 });
+    }
+
+    #[test]
+    fn unsupported_codes_name_line_and_code() {
+        let cases = [
+            ("G1 X1 F10\nG41 D1", 2, "G41"),
+            ("G1 X1 F10\n\nM0444444444", 3, "M444444444"),
+            ("G12.1", 1, "G12.1"),
+            ("G1 B10 F100", 1, "B10"),
+            ("CYCLE800()", 1, "CYCLE"),
+            ("G1 X1 F1\nG1 X2 #1", 2, "#"),
+        ];
+        for (text, line, code) in cases {
+            match parse(text) {
+                Err(Error::UnsupportedCode { line: l, code: c }) => {
+                    assert_eq!(l, line, "{text}");
+                    assert!(c.starts_with(code), "{text}: {c}");
+                }
+                other => panic!("{text}: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn malformed_blocks_are_errors_not_skips() {
+        for (text, line) in [
+            ("G1 X10 Y0 F100\nG2 X0 Y10 I-3 J0", 2), // end not on circle
+            ("G1 X1\n", 1),                          // no feed
+            ("X1", 1),                               // no motion mode
+            ("G1 X1 X2 F1", 1),                      // duplicate word
+            ("G1 X F1", 1),                          // missing number
+            ("G1 X1 F1 (open", 1),                   // unclosed comment
+            ("G1 X1 F100\nG2 X1 R5", 2),             // R full circle ambiguous
+            ("G1 X1 F100\nG2 X30 R5", 2),            // R too small
+            ("G0 G1 X1 F1", 1),                      // two motion codes
+        ] {
+            let e = parse(text).unwrap_err();
+            match e {
+                Error::Gcode { line: l, .. } => assert_eq!(l, line, "{text}"),
+                other => panic!("{text}: {other:?}"),
+            }
+        }
+    }
+
+    #[test]
+    fn program_end_stops_reading() {
+        let p = parse("G1 X1 F100\nM30\nG1 X99 B2").unwrap();
+        assert_eq!(p.blocks.len(), 1);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(2000))]
+        #[test]
+        fn random_text_never_panics(s in "\\PC{0,200}") {
+            let _ = parse(&s);
+        }
+
+        #[test]
+        fn random_gcode_like_text_never_panics(
+            s in "([GMXYZACIJKRFNPHT][-+]?[0-9]{0,12}(\\.[0-9]{0,6})?[ ;()\n]?){0,40}"
+        ) {
+            if let Ok(p) = parse(&s) {
+                for b in &p.blocks {
+                    let q = b.pose_at(0.37);
+                    prop_assert!(q.xyz.iter().all(|v| v.is_finite()));
+                }
+            }
+        }
+    }
+}

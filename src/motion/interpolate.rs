@@ -1,0 +1,497 @@
+//! Interpolator: program blocks → machine-axis command every interpolation period.
+//!
+//! Feed distribution (seed 003 §2.2, eqs. 2–7): each block has a path parameter `s` whose
+//! length is the tool-tip displacement `L_i` (eq. 2) when RTCP is on, else the extended
+//! displacement `ΔL = √(ΔX²+ΔY²+ΔZ²+ΔA²+ΔC²)` with the rotary terms in radians (eq. 3). The
+//! programmed F fixes the block time `T = L_i/F` (eq. 4; G93: `T = 1/F`), every axis moves
+//! its own displacement in that same time (eq. 6: `F_x = ΔX/ΔL·F_s`, eq. 7), and RTCP maps
+//! each interpolated tool-tip point through the inverse kinematics, so the machine axes
+//! follow the non-linear path that keeps the tip on the programmed line.
+//!
+//! On top of the programmed feed: a jerk-limited S-curve along `s` ([`super::profile`]) whose
+//! caps come from the per-axis `max_vel`, `max_accel`, `max_jerk` through the derivatives
+//! `dq/ds`, `d²q/ds²`, `d³q/ds³` of the machine axes along the block (half of each axis'
+//! acceleration/jerk budget goes to the tangential ramp, half to path curvature on curved
+//! blocks), and a look-ahead over the whole program (backward and forward passes) so speed
+//! carries through tangent junctions and drops at corners to the speed whose direction
+//! change per period stays within `max_accel·period` on every axis.
+
+use super::error::Error;
+use super::gcode::{Block, Feed, Motion, Program};
+use super::kinematics::Kinematics;
+use super::machine::Machine;
+use super::profile::{self, Piece};
+
+/// The interpolated command: one row per period.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Trajectory {
+    /// Interpolation period, s.
+    pub period_s: f64,
+    /// Sample times `k·period_s`, s.
+    pub t: Vec<f64>,
+    /// Machine-axis commands, one column per axis (X, Y, Z[, A, C]), mm / degrees.
+    pub axes: Vec<Vec<f64>>,
+    /// 1-based source line of the block being executed at each sample.
+    pub line: Vec<u32>,
+}
+
+/// Default interpolation period (1 ms), s.
+pub const DEFAULT_PERIOD_S: f64 = 1e-3;
+
+struct Seg {
+    len: f64,
+    vcap: f64,
+    acc: f64,
+    jerk: f64,
+    d_in: [f64; 5],
+    d_out: [f64; 5],
+}
+
+fn axes_at(kin: &Kinematics, b: &Block, u: f64) -> [f64; 5] {
+    let p = b.pose_at(u);
+    if b.rtcp {
+        kin.inverse(&p.xyz, p.a, p.c)
+    } else {
+        [p.xyz[0], p.xyz[1], p.xyz[2], p.a, p.c]
+    }
+}
+
+fn is_machine_straight(b: &Block) -> bool {
+    matches!(b.motion, Motion::Linear)
+        && (!b.rtcp || (b.start.a == b.end.a && b.start.c == b.end.c))
+}
+
+/// Builds the planning segment of one motion block (length, caps, end tangents).
+fn segment(kin: &Kinematics, m: &Machine, b: &Block, n_axes: usize) -> Seg {
+    let da = (b.end.a - b.start.a).to_radians();
+    let dc = (b.end.c - b.start.c).to_radians();
+    let rot = (da * da + dc * dc).sqrt();
+    let xyz = b.xyz_length();
+    let len = if b.rtcp && xyz > 1e-9 {
+        xyz
+    } else {
+        (xyz * xyz + rot * rot).sqrt()
+    };
+    let v_feed = match b.feed {
+        Feed::Rapid => m.rapid_mm_min / 60.0,
+        Feed::PerMinute(f) => f / 60.0,
+        Feed::InverseTime(f) => len * f / 60.0,
+    };
+    let q0 = axes_at(kin, b, 0.0);
+    let q1 = axes_at(kin, b, 1.0);
+    let mut d1 = [0.0f64; 5];
+    let mut d2 = [0.0f64; 5];
+    let mut d3 = [0.0f64; 5];
+    let (d_in, d_out);
+    let straight = is_machine_straight(b);
+    if straight {
+        for i in 0..n_axes {
+            d1[i] = ((q1[i] - q0[i]) / len).abs();
+        }
+        let dir: [f64; 5] = std::array::from_fn(|i| (q1[i] - q0[i]) / len);
+        d_in = dir;
+        d_out = dir;
+    } else {
+        let sweep = match b.motion {
+            Motion::Arc { sweep_rad, .. } => sweep_rad.abs(),
+            _ => 0.0,
+        };
+        let n = ((sweep / 5f64.to_radians()).ceil() as usize).clamp(24, 720);
+        let h = 1.0 / n as f64;
+        let q: Vec<[f64; 5]> = (0..=n).map(|k| axes_at(kin, b, k as f64 * h)).collect();
+        let hs = h * len;
+        for i in 0..n_axes {
+            let f1: Vec<f64> = (0..n).map(|k| (q[k + 1][i] - q[k][i]) / hs).collect();
+            let f2: Vec<f64> = (0..n - 1).map(|k| (f1[k + 1] - f1[k]) / hs).collect();
+            let f3: Vec<f64> = (0..n - 2).map(|k| (f2[k + 1] - f2[k]) / hs).collect();
+            d1[i] = f1.iter().fold(0.0, |a, v| a.max(v.abs()));
+            d2[i] = f2.iter().fold(0.0, |a, v| a.max(v.abs()));
+            d3[i] = f3.iter().fold(0.0, |a, v| a.max(v.abs()));
+        }
+        let eps = 1e-7;
+        let qa = axes_at(kin, b, eps);
+        let qb = axes_at(kin, b, 1.0 - eps);
+        d_in = std::array::from_fn(|i| (qa[i] - q0[i]) / (eps * len));
+        d_out = std::array::from_fn(|i| (q1[i] - qb[i]) / (eps * len));
+    }
+    let share = if straight { 1.0 } else { 0.5 };
+    let (mut vcap, mut acc, mut jerk) = (v_feed, f64::INFINITY, f64::INFINITY);
+    for (i, ax) in m.axes.iter().enumerate().take(n_axes) {
+        let l = ax.limits;
+        if d1[i] > 1e-12 {
+            vcap = vcap.min(l.max_vel / d1[i]);
+            acc = acc.min(share * l.max_accel / d1[i]);
+            jerk = jerk.min(share * l.max_jerk / d1[i]);
+        }
+        if d2[i] > 1e-12 {
+            vcap = vcap.min((0.5 * l.max_accel / d2[i]).sqrt());
+        }
+        if d3[i] > 1e-12 {
+            vcap = vcap.min((0.5 * l.max_jerk / d3[i]).cbrt());
+        }
+    }
+    Seg {
+        len,
+        vcap,
+        acc,
+        jerk,
+        d_in,
+        d_out,
+    }
+}
+
+/// Interpolates `program` on `machine` every `period_s` seconds (machine at rest at the start
+/// and at the end). Fails with [`Error::TooManyPeriods`] before allocating when the program
+/// needs more than `max_periods` samples.
+///
+/// The first feed block after RTCP is switched on or off starts from where the machine
+/// actually is (its position re-read in the new interpretation), as controllers do; an arc
+/// there is rejected because its centre would refer to the other interpretation.
+pub fn interpolate(
+    program: &Program,
+    machine: &Machine,
+    period_s: f64,
+    max_periods: usize,
+) -> Result<Trajectory, Error> {
+    if !(period_s.is_finite() && (1e-5..=0.1).contains(&period_s)) {
+        return Err(Error::parameter(
+            "period_s",
+            format!("must be within 1e-5..0.1 s, got {period_s}"),
+        ));
+    }
+    let kin = &machine.kinematics;
+    let n_axes = kin.axis_count();
+    if n_axes == 3 {
+        for (line, axis) in [(program.first_a_line, 'A'), (program.first_c_line, 'C')] {
+            if let Some(line) = line {
+                return Err(Error::gcode(
+                    line,
+                    format!(
+                        "axis {axis} is programmed but the machine (kinematics xyz) has no {axis} axis"
+                    ),
+                ));
+            }
+        }
+    }
+    // Re-base blocks whose start differs from the machine position (after RTCP toggles).
+    let mut blocks: Vec<Block> = Vec::with_capacity(program.blocks.len());
+    let mut q_cur = [0.0f64; 5];
+    for b in &program.blocks {
+        let mut b = b.clone();
+        let q0 = axes_at(kin, &b, 0.0);
+        if (0..n_axes).any(|i| (q0[i] - q_cur[i]).abs() > 1e-9) {
+            if matches!(b.motion, Motion::Arc { .. }) {
+                return Err(Error::gcode(
+                    b.line,
+                    "the first move after switching RTCP (G43.4/G49, TRAORI/TRAFOOF) must be G0 or G1, not an arc",
+                ));
+            }
+            if b.rtcp {
+                let tp = kin.forward(&q_cur);
+                b.start.xyz = tp.tip;
+            } else {
+                b.start.xyz = [q_cur[0], q_cur[1], q_cur[2]];
+            }
+            b.start.a = q_cur[3];
+            b.start.c = q_cur[4];
+            if matches!(b.motion, Motion::Dwell { .. }) {
+                b.end = b.start;
+            }
+        }
+        q_cur = axes_at(kin, &b, 1.0);
+        blocks.push(b);
+    }
+    // Planning segments; dwells carry None, zero-length moves (possible after re-basing) go.
+    let mut items: Vec<(&Block, Option<Seg>)> = Vec::with_capacity(blocks.len());
+    for b in &blocks {
+        if matches!(b.motion, Motion::Dwell { .. }) {
+            items.push((b, None));
+            continue;
+        }
+        let s = segment(kin, machine, b, n_axes);
+        if s.len > 1e-12 {
+            items.push((b, Some(s)));
+        }
+    }
+    if !items.iter().any(|(_, s)| s.is_some()) {
+        return Err(Error::EmptyProgram);
+    }
+    // Junction speeds: v[k] is the speed entering item k; v[n] = 0.
+    let n = items.len();
+    let mut v = vec![0.0f64; n + 1];
+    for k in 1..n {
+        let (Some(a), Some(b)) = (&items[k - 1].1, &items[k].1) else {
+            continue;
+        };
+        let mut vj = a.vcap.min(b.vcap);
+        for (i, ax) in machine.axes.iter().enumerate().take(n_axes) {
+            let dd = (b.d_in[i] - a.d_out[i]).abs();
+            if dd > 1e-12 {
+                vj = vj.min(ax.limits.max_accel * period_s / dd);
+            }
+        }
+        v[k] = vj;
+    }
+    // Backward pass (must be able to slow down to the next junction), then forward pass.
+    for k in (0..n).rev() {
+        if let Some(s) = &items[k].1
+            && v[k] > v[k + 1]
+            && profile::ramp_distance(v[k + 1], v[k], s.acc, s.jerk) > s.len
+        {
+            v[k] = profile::max_reachable_speed(v[k + 1], s.len, s.acc, s.jerk).min(v[k]);
+        }
+    }
+    for k in 0..n {
+        if let Some(s) = &items[k].1
+            && v[k + 1] > v[k]
+            && profile::ramp_distance(v[k], v[k + 1], s.acc, s.jerk) > s.len
+        {
+            v[k + 1] = profile::max_reachable_speed(v[k], s.len, s.acc, s.jerk).min(v[k + 1]);
+        }
+    }
+    // Pieces.
+    let mut pieces: Vec<Piece> = Vec::with_capacity(4 * n);
+    let mut t = 0.0;
+    for (k, (b, s)) in items.iter().enumerate() {
+        match s {
+            Some(s) => {
+                let lim = profile::BlockLimits {
+                    len: s.len,
+                    v0: v[k],
+                    v1: v[k + 1],
+                    vcap: s.vcap,
+                    a: s.acc,
+                    j: s.jerk,
+                };
+                t = profile::plan_block(&mut pieces, k, t, lim);
+            }
+            None => {
+                let Motion::Dwell { seconds } = b.motion else {
+                    continue;
+                };
+                pieces.push(Piece {
+                    t0: t,
+                    dur: seconds,
+                    s0: 0.0,
+                    v0: 0.0,
+                    a0: 0.0,
+                    j: 0.0,
+                    block: k,
+                });
+                t += seconds;
+            }
+        }
+    }
+    let total = t;
+    let periods = (total / period_s - 1e-9).ceil().max(0.0) as u64 + 1;
+    if periods > max_periods as u64 {
+        return Err(Error::TooManyPeriods {
+            periods,
+            limit: max_periods,
+        });
+    }
+    let count = periods as usize;
+    let mut out_t = Vec::with_capacity(count);
+    let mut axes = vec![Vec::with_capacity(count); n_axes];
+    let mut lines = Vec::with_capacity(count);
+    let mut p = 0usize;
+    for k in 0..count {
+        let tk = k as f64 * period_s;
+        while p + 1 < pieces.len() && tk >= pieces[p].t0 + pieces[p].dur {
+            p += 1;
+        }
+        let piece = &pieces[p];
+        let (b, s) = &items[piece.block];
+        let u = match s {
+            Some(s) if tk < total => piece.s_at(tk) / s.len,
+            _ => 1.0,
+        };
+        let q = axes_at(kin, b, u);
+        for (i, col) in axes.iter_mut().enumerate() {
+            col.push(q[i]);
+        }
+        out_t.push(tk);
+        lines.push(b.line as u32);
+    }
+    Ok(Trajectory {
+        period_s,
+        t: out_t,
+        axes,
+        line: lines,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::motion::gcode::parse;
+    use serde_json::json;
+
+    fn xyz(limits: serde_json::Value) -> Machine {
+        let mut ax = json!({"kv": 30});
+        for (k, v) in limits.as_object().unwrap() {
+            ax[k] = v.clone();
+        }
+        Machine::from_json(&json!({"kinematics": "xyz", "axes": {"X": ax, "Y": ax, "Z": ax}}))
+            .unwrap()
+    }
+
+    fn run(m: &Machine, text: &str) -> Trajectory {
+        interpolate(&parse(text).unwrap(), m, 1e-3, 10_000_000).unwrap()
+    }
+
+    /// Max |first, second, third difference| per axis (velocity, acceleration, jerk).
+    fn derivatives(t: &Trajectory, skip: &dyn Fn(usize) -> bool) -> (f64, f64, f64) {
+        let h = t.period_s;
+        let (mut v, mut a, mut j) = (0.0f64, 0.0f64, 0.0f64);
+        for col in &t.axes {
+            for k in 3..col.len() {
+                if skip(k) {
+                    continue;
+                }
+                v = v.max(((col[k] - col[k - 1]) / h).abs());
+                a = a.max(((col[k] - 2.0 * col[k - 1] + col[k - 2]) / (h * h)).abs());
+                j = j.max(
+                    ((col[k] - 3.0 * col[k - 1] + 3.0 * col[k - 2] - col[k - 3]) / (h * h * h))
+                        .abs(),
+                );
+            }
+        }
+        (v, a, j)
+    }
+
+    #[test]
+    fn line_respects_axis_limits_and_reaches_the_feed() {
+        let m = xyz(json!({"max_vel": 200.0, "max_accel": 2000.0, "max_jerk": 40000.0}));
+        // Programmed 300 mm/s along X: capped to 200 mm/s by max_vel.
+        let t = run(&m, "G1 X400 F18000");
+        let (v, a, j) = derivatives(&t, &|_| false);
+        assert!((v - 200.0).abs() < 1e-6, "v {v}");
+        assert!(a <= 2000.0 * 1.001, "a {a}");
+        assert!(j <= 40000.0 * 1.05, "j {j}");
+        assert_eq!(*t.axes[0].last().unwrap(), 400.0);
+        // Duration: 400/200 s cruise-equivalent plus one ramp (accel) time: dv/a + a/j.
+        let expect = 400.0 / 200.0 + 200.0 / 2000.0 + 2000.0 / 40000.0;
+        let got = t.t.last().unwrap();
+        assert!((got - expect).abs() < 2e-3, "{got} vs {expect}");
+    }
+
+    #[test]
+    fn look_ahead_keeps_speed_through_tangent_junctions_and_stops_at_corners() {
+        let m = xyz(json!({}));
+        // 36 arcs of 10° forming a circle: tangent junctions, speed must not dip.
+        let mut prog = String::from("G0 X10 Y0\nG1 F3000\n");
+        for k in 1..=36 {
+            let th = (k as f64 * 10.0f64).to_radians();
+            let (x0, y0) = (
+                10.0 * ((k - 1) as f64 * 10.0f64).to_radians().cos(),
+                10.0 * ((k - 1) as f64 * 10.0f64).to_radians().sin(),
+            );
+            prog += &format!(
+                "G3 X{:.9} Y{:.9} I{:.9} J{:.9}\n",
+                10.0 * th.cos(),
+                10.0 * th.sin(),
+                -x0,
+                -y0
+            );
+        }
+        let t = run(&m, &prog);
+        let speeds: Vec<f64> = (1..t.t.len())
+            .filter(|&k| t.line[k] >= 12 && t.line[k] <= 30)
+            .map(|k| {
+                (t.axes[0][k] - t.axes[0][k - 1]).hypot(t.axes[1][k] - t.axes[1][k - 1]) / 1e-3
+            })
+            .collect();
+        let min = speeds.iter().cloned().fold(f64::MAX, f64::min);
+        assert!((min - 50.0).abs() < 1e-3, "speed dipped to {min}");
+        // A 90° corner between two lines: the speed at the corner is bounded by
+        // max_accel·period/|Δ(dq/ds)| per axis = 5000·1e-3/1 = 5 mm/s.
+        let t = run(&m, "G1 X50 F6000\nG1 Y50");
+        let corner = t.line.iter().position(|&l| l == 2).unwrap();
+        let v = (t.axes[0][corner] - t.axes[0][corner - 1])
+            .hypot(t.axes[1][corner] - t.axes[1][corner - 1])
+            / 1e-3;
+        assert!(v <= 5.0 + 1e-9, "corner speed {v}");
+        let (_, a, _) = derivatives(&t, &|_| false);
+        assert!(a <= 5000.0 * 2.01, "a {a}");
+    }
+
+    /// Seed 003 eqs. 4–7: with RTCP the programmed F is the tool-tip speed; without RTCP it is
+    /// the speed in the extended displacement √(ΔX²+…+ΔA²+ΔC²) (rotary terms in radians).
+    #[test]
+    fn feed_distribution_follows_seed_equations() {
+        let ax = json!({"kv": 30, "max_vel": 1e6, "max_accel": 1e7, "max_jerk": 1e10});
+        let m = Machine::from_json(&json!({"kinematics": "xyzac_table",
+            "geometry": {"a_axis_origin": [0, 0, -50], "tool_length": 100},
+            "axes": {"X": ax, "Y": ax, "Z": ax, "A": ax, "C": ax}}))
+        .unwrap();
+        // RTCP on: tip speed = F/60 = 20 mm/s in mid-block.
+        let t = run(&m, "G43.4\nG1 X0 Y0 Z0 F1200\nG1 X100 Y0 Z0 A30 C90\n");
+        let k = t.line.iter().position(|&l| l == 3).unwrap() + (100.0 / 20.0 / 2.0 / 1e-3) as usize;
+        let tip = |k: usize| {
+            m.kinematics
+                .forward(&std::array::from_fn(|i| t.axes[i][k]))
+                .tip
+        };
+        let v = crate::motion::gcode::dist3(&tip(k), &tip(k - 1)) / 1e-3;
+        assert!((v - 20.0).abs() < 1e-3, "tip speed {v}");
+        // RTCP off: 100 mm in X with 90° of C: ΔL = √(100² + (π/2)²); block time ΔL/F.
+        let t = run(&m, "G1 X100 C90 F1200\n");
+        let dl = (100.0f64.powi(2) + std::f64::consts::FRAC_PI_2.powi(2)).sqrt();
+        let k = t.t.len() / 2;
+        let vx = (t.axes[0][k] - t.axes[0][k - 1]) / 1e-3;
+        let vc = (t.axes[4][k] - t.axes[4][k - 1]) / 1e-3;
+        assert!((vx - 100.0 / dl * 20.0).abs() < 1e-6, "vx {vx}");
+        assert!((vc - 90.0 / dl * 20.0).abs() < 1e-6, "vc {vc}");
+        // G93: the block takes 1/F min: F2 → 30 s (plus the tiny ramps here).
+        let t = run(&m, "G93 G1 X10 F2\n");
+        assert!(
+            (t.t.last().unwrap() - 30.0).abs() < 0.01,
+            "{}",
+            t.t.last().unwrap()
+        );
+    }
+
+    #[test]
+    fn bad_inputs_are_typed_errors() {
+        let m = xyz(json!({}));
+        let e = interpolate(&parse("G1 X1 F100\nG1 A10").unwrap(), &m, 1e-3, 1000).unwrap_err();
+        assert!(matches!(e, Error::Gcode { line: 2, .. }), "{e:?}");
+        let e = interpolate(&parse("G1 X1000 F10").unwrap(), &m, 1e-3, 1000).unwrap_err();
+        assert!(
+            matches!(e, Error::TooManyPeriods { limit: 1000, .. }),
+            "{e:?}"
+        );
+        let e = interpolate(&parse("G1 X1 F10").unwrap(), &m, 0.0, 1000).unwrap_err();
+        assert!(matches!(e, Error::InvalidParameter { .. }), "{e:?}");
+        let e = interpolate(&parse("G1 F10\n(nothing)").unwrap(), &m, 1e-3, 1000).unwrap_err();
+        assert_eq!(e, Error::EmptyProgram);
+    }
+
+    #[test]
+    fn dwell_holds_position() {
+        let m = xyz(json!({}));
+        let t = run(&m, "G1 X10 F600\nG4 X0.5\nG1 X20");
+        let dwell: Vec<usize> = (0..t.t.len()).filter(|&k| t.line[k] == 2).collect();
+        assert!(dwell.len() >= 499 && dwell.len() <= 501, "{}", dwell.len());
+        assert!(dwell.iter().all(|&k| t.axes[0][k] == 10.0));
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(300))]
+        /// Whatever parses also interpolates without panicking (error or trajectory).
+        #[test]
+        fn random_programs_never_panic(
+            s in "(G[0-3] |G9[01] |G1[789] |G43.4 |G49 )?([XYZAC][-]?[0-9]{1,3}(\\.[0-9]{1,3})? ){1,4}([IJKR][-]?[0-9]{1,2} ){0,2}(F[1-9][0-9]{0,4})?\n{1,8}"
+        ) {
+            let ax = json!({"kv": 30});
+            let m = Machine::from_json(&json!({"kinematics": "xyzac_table",
+                "axes": {"X": ax, "Y": ax, "Z": ax, "A": ax, "C": ax}})).unwrap();
+            if let Ok(p) = parse(&format!("G1 F1000\n{s}"))
+                && let Ok(t) = interpolate(&p, &m, 1e-3, 200_000)
+            {
+                proptest::prop_assert!(t.axes.iter().flatten().all(|v| v.is_finite()));
+            }
+        }
+    }
+}

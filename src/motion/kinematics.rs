@@ -1,0 +1,210 @@
+//! Machine kinematics: `xyz` and `xyzac_table` (A tilting table about X carrying a C rotary
+//! table about Z; the spindle moves in X, Y, Z and stays parallel to machine Z).
+//!
+//! Conventions: machine coordinates coincide with the workpiece frame when A = C = 0.
+//! A point `p_w` fixed to the workpiece sits in the machine frame at
+//! `p_m = T_A(A)·T_C(C)·p_w`, with `T_C(C) p = R_z(C)(p − o_C) + o_C` and
+//! `T_A(A) p = R_x(A)(p − o_A) + o_A` (right-hand rotations, degrees), `o_A` a point on the
+//! A axis and `o_C` a point on the C axis, both given at A = C = 0. Machine X, Y, Z are the
+//! spindle gauge point; the tool tip is `tool_length` mm below it along −Z.
+
+use serde::{Deserialize, Serialize};
+
+/// Table offsets and tool length of an `xyzac_table` machine (the machine JSON "geometry").
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TableGeometry {
+    /// A point on the A (tilt, about X) axis at A = C = 0, machine coordinates, mm.
+    #[serde(default)]
+    pub a_axis_origin: [f64; 3],
+    /// A point on the C (rotary, about Z) axis at A = C = 0, machine coordinates, mm.
+    #[serde(default)]
+    pub c_axis_origin: [f64; 3],
+    /// Tool length from the spindle gauge point to the tool tip, mm.
+    #[serde(default)]
+    pub tool_length: f64,
+}
+
+impl Default for TableGeometry {
+    fn default() -> Self {
+        TableGeometry {
+            a_axis_origin: [0.0; 3],
+            c_axis_origin: [0.0; 3],
+            tool_length: 0.0,
+        }
+    }
+}
+
+/// Kinematic chain of a machine.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Kinematics {
+    /// Three orthogonal linear axes; the tool tip is (X, Y, Z).
+    Xyz,
+    /// Five axes X, Y, Z, A (table tilt about X), C (table rotation about Z).
+    XyzacTable(TableGeometry),
+}
+
+/// Tool tip (mm) and unit tool axis (pointing from tip into the spindle), both in the
+/// workpiece frame.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ToolPose {
+    pub tip: [f64; 3],
+    pub axis: [f64; 3],
+}
+
+fn rot_x(deg: f64, p: [f64; 3]) -> [f64; 3] {
+    let (s, c) = deg.to_radians().sin_cos();
+    [p[0], c * p[1] - s * p[2], s * p[1] + c * p[2]]
+}
+
+fn rot_z(deg: f64, p: [f64; 3]) -> [f64; 3] {
+    let (s, c) = deg.to_radians().sin_cos();
+    [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]]
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+}
+
+impl Kinematics {
+    /// Number of machine axes (3 or 5), in the order X, Y, Z[, A, C].
+    pub fn axis_count(&self) -> usize {
+        match self {
+            Kinematics::Xyz => 3,
+            Kinematics::XyzacTable(_) => 5,
+        }
+    }
+
+    /// Forward transform: machine axes `[X, Y, Z, A, C]` (mm, degrees; A and C ignored for
+    /// `xyz`) → tool tip and tool axis in the workpiece frame.
+    /// Formula: `p_w = T_C(C)⁻¹ T_A(A)⁻¹ (X, Y, Z − L)`, axis `= R_z(−C) R_x(−A) e_z`
+    /// = (sin A sin C, sin A cos C, cos A). Reference: seed 003 §2.1 eq. 1 (tool axis vector
+    /// from the rotary angles), with this crate's sign conventions (module docs).
+    pub fn forward(&self, q: &[f64; 5]) -> ToolPose {
+        match self {
+            Kinematics::Xyz => ToolPose {
+                tip: [q[0], q[1], q[2]],
+                axis: [0.0, 0.0, 1.0],
+            },
+            Kinematics::XyzacTable(g) => {
+                let tip_m = [q[0], q[1], q[2] - g.tool_length];
+                let p = add(rot_x(-q[3], sub(tip_m, g.a_axis_origin)), g.a_axis_origin);
+                let tip = add(rot_z(-q[4], sub(p, g.c_axis_origin)), g.c_axis_origin);
+                let axis = rot_z(-q[4], rot_x(-q[3], [0.0, 0.0, 1.0]));
+                ToolPose { tip, axis }
+            }
+        }
+    }
+
+    /// Inverse transform (what RTCP does): tool tip `tip` in the workpiece frame (mm) and
+    /// rotary positions `a`, `c` (degrees) → machine axes `[X, Y, Z, A, C]`.
+    /// Formula: `(X, Y, Z) = T_A(A) T_C(C) tip + (0, 0, L)`. Exact inverse of [`forward`]
+    /// for any angles (no singularity: the rotary angles are given, not solved for).
+    ///
+    /// [`forward`]: Kinematics::forward
+    pub fn inverse(&self, tip: &[f64; 3], a: f64, c: f64) -> [f64; 5] {
+        match self {
+            Kinematics::Xyz => [tip[0], tip[1], tip[2], a, c],
+            Kinematics::XyzacTable(g) => {
+                let p = add(rot_z(c, sub(*tip, g.c_axis_origin)), g.c_axis_origin);
+                let m = add(rot_x(a, sub(p, g.a_axis_origin)), g.a_axis_origin);
+                [m[0], m[1], m[2] + g.tool_length, a, c]
+            }
+        }
+    }
+}
+
+/// Rotary angles (degrees) that put the tool axis along the unit vector `axis` (workpiece
+/// frame) on an `xyzac_table` machine: A = acos(k) ∈ [0°, 180°], C = atan2(i, j).
+/// Inverse of the axis formula of [`Kinematics::forward`]. Bad case: at A = 0 (axis along Z)
+/// C is arbitrary and 0 is returned; the other branch (−A, C + 180°) is not returned.
+pub fn orientation_to_ac(axis: &[f64; 3]) -> (f64, f64) {
+    let n = (axis[0] * axis[0] + axis[1] * axis[1] + axis[2] * axis[2]).sqrt();
+    let k = (axis[2] / n).clamp(-1.0, 1.0);
+    let a = k.acos().to_degrees();
+    let c = if (axis[0] / n).hypot(axis[1] / n) < 1e-12 {
+        0.0
+    } else {
+        axis[0].atan2(axis[1]).to_degrees()
+    };
+    (a, c)
+}
+
+/// Angle between two tool axes, degrees (robust near 0 via atan2 of |u×v| and u·v).
+pub fn angle_between_deg(u: &[f64; 3], v: &[f64; 3]) -> f64 {
+    let cross = [
+        u[1] * v[2] - u[2] * v[1],
+        u[2] * v[0] - u[0] * v[2],
+        u[0] * v[1] - u[1] * v[0],
+    ];
+    let cn = (cross[0] * cross[0] + cross[1] * cross[1] + cross[2] * cross[2]).sqrt();
+    let dot = u[0] * v[0] + u[1] * v[1] + u[2] * v[2];
+    cn.atan2(dot).to_degrees()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use proptest::prelude::*;
+
+    fn machine() -> Kinematics {
+        Kinematics::XyzacTable(TableGeometry {
+            a_axis_origin: [0.0, 12.5, -80.0],
+            c_axis_origin: [3.0, -4.0, -60.0],
+            tool_length: 120.0,
+        })
+    }
+
+    #[test]
+    fn zero_angles_only_shift_by_tool_length() {
+        let k = machine();
+        let q = k.inverse(&[10.0, 20.0, 30.0], 0.0, 0.0);
+        assert!((q[0] - 10.0).abs() < 1e-12 && (q[1] - 20.0).abs() < 1e-12);
+        assert!((q[2] - 150.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn a90_tilts_tool_axis_to_workpiece_y() {
+        // A = +90°: the table turns so that the tool (machine +Z) points along workpiece +Y.
+        let t = machine().forward(&[0.0, 0.0, 0.0, 90.0, 0.0]);
+        assert!((t.axis[1] - 1.0).abs() < 1e-12, "{:?}", t.axis);
+        let (a, c) = orientation_to_ac(&t.axis);
+        assert!((a - 90.0).abs() < 1e-9 && c.abs() < 1e-9);
+    }
+
+    proptest! {
+        #![proptest_config(ProptestConfig::with_cases(512))]
+        #[test]
+        fn forward_after_inverse_is_identity(
+            x in -500.0..500.0f64, y in -500.0..500.0f64, z in -300.0..300.0f64,
+            a in -120.0..120.0f64, c in -720.0..720.0f64,
+        ) {
+            let k = machine();
+            let q = k.inverse(&[x, y, z], a, c);
+            let t = k.forward(&q);
+            prop_assert!(gcode_dist(&t.tip, &[x, y, z]) < 1e-9);
+            // Tool axis from the angles matches the closed form of eq. 1.
+            let (sa, ca) = a.to_radians().sin_cos();
+            let (sc, cc) = c.to_radians().sin_cos();
+            let expect = [sa * sc, sa * cc, ca];
+            prop_assert!(gcode_dist(&t.axis, &expect) < 1e-12);
+            // And back: inverse(forward(q)) = q.
+            let q2 = k.inverse(&t.tip, q[3], q[4]);
+            for i in 0..5 { prop_assert!((q2[i] - q[i]).abs() < 1e-9); }
+            // Orientation → angles → orientation.
+            if a.abs() > 1e-3 {
+                let (a2, c2) = orientation_to_ac(&t.axis);
+                let back = k.forward(&[0.0, 0.0, 0.0, a2, c2]).axis;
+                prop_assert!(gcode_dist(&back, &t.axis) < 1e-9);
+            }
+        }
+    }
+
+    fn gcode_dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+        crate::motion::gcode::dist3(a, b)
+    }
+}

@@ -1,0 +1,23 @@
+//! Motion core (seed 003): G-code reader, RTCP interpolation with a jerk-limited feed
+//! profile, machine kinematics, the servo cascade per axis (E's `servo`), physical drive
+//! parameters, and contour error.
+pub mod contour;
+pub mod error;
+pub mod gcode;
+pub mod interpolate;
+pub mod kinematics;
+pub mod machine;
+pub mod physical;
+pub mod predict;
+pub mod profile;
+pub mod servo;
+
+pub use contour::{ContourReport, contour_error};
+pub use error::Error;
+pub use gcode::{Program, parse};
+pub use interpolate::{DEFAULT_PERIOD_S, Trajectory, interpolate};
+pub use kinematics::{Kinematics, TableGeometry, ToolPose};
+pub use machine::{AxisLimits, Machine, MachineAxis};
+pub use physical::{PhysicalAxis, StructuralMode};
+pub use predict::{ContourPrediction, predict_contour_error, simulate_machine};
+pub use servo::{DiscreteServo, ServoAxis, simulate_axis};

@@ -1,0 +1,90 @@
+//! Activation functions.
+
+use serde::{Deserialize, Serialize};
+
+/// Element-wise activation of a layer.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Activation {
+    /// `max(0, z)` (seed 000, eq. 3).
+    Relu,
+    /// Logistic `1 / (1 + e^-z)` (seeds 001/004).
+    Sigmoid,
+    /// `z` (regression output layers).
+    Identity,
+}
+
+impl Activation {
+    /// The activation `a = f(z)` of a pre-activation `z` (dimensionless).
+    ///
+    /// Reference: seed 000 eq. (3) for ReLU. Sigmoid saturates (derivative ~0) for |z| > 30.
+    #[inline]
+    pub fn apply(self, z: f64) -> f64 {
+        match self {
+            Activation::Relu => z.max(0.0),
+            Activation::Sigmoid => 1.0 / (1.0 + (-z).exp()),
+            Activation::Identity => z,
+        }
+    }
+
+    /// The derivative `f'(z)` written in terms of the output `a = f(z)`, which is what
+    /// back-propagation keeps: ReLU `1[a > 0]`, sigmoid `a (1 - a)`, identity `1`.
+    ///
+    /// Reference: standard back-propagation (seed 000 eqs. 5-6). ReLU at exactly 0 takes 0.
+    #[inline]
+    pub fn derivative_from_output(self, a: f64) -> f64 {
+        match self {
+            Activation::Relu => {
+                if a > 0.0 {
+                    1.0
+                } else {
+                    0.0
+                }
+            }
+            Activation::Sigmoid => a * (1.0 - a),
+            Activation::Identity => 1.0,
+        }
+    }
+
+    pub(crate) fn code(self) -> u8 {
+        match self {
+            Activation::Relu => 0,
+            Activation::Sigmoid => 1,
+            Activation::Identity => 2,
+        }
+    }
+
+    pub(crate) fn from_code(code: u8) -> Option<Self> {
+        match code {
+            0 => Some(Activation::Relu),
+            1 => Some(Activation::Sigmoid),
+            2 => Some(Activation::Identity),
+            _ => None,
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn derivatives_match_finite_differences() {
+        for act in [Activation::Relu, Activation::Sigmoid, Activation::Identity] {
+            for z in [-2.0, -0.3, 0.4, 1.7] {
+                let h = 1e-6;
+                let fd = (act.apply(z + h) - act.apply(z - h)) / (2.0 * h);
+                let an = act.derivative_from_output(act.apply(z));
+                assert!((fd - an).abs() < 1e-6, "{act:?} at {z}: {fd} vs {an}");
+            }
+        }
+    }
+
+    #[test]
+    fn codes_round_trip() {
+        for act in [Activation::Relu, Activation::Sigmoid, Activation::Identity] {
+            assert_eq!(Activation::from_code(act.code()), Some(act));
+        }
+        assert_eq!(Activation::from_code(9), None);
+    }
+}
