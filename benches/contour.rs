@@ -2,14 +2,17 @@
 //! 3-axis and a 5-axis (RTCP) program of more than 10 minutes of machining, one core.
 //! Stages timed separately (parse + interpolate, servo, contour, JSON encoding of the HTTP
 //! answer); the servo stage is compared against a naive RK4 integration of the same cascade
-//! (10 sub-steps per period) measured in the same run.
+//! (10 sub-steps per period) measured in the same run. Times are CPU time of the bench thread
+//! (wall clock printed beside it, as the machine may be shared).
 //!
 //! Run: `cargo bench --bench contour`
 
 use std::time::Instant;
 
 use serde_json::json;
-use truecut::motion::{Machine, ServoAxis, contour_error, gcode, interpolate, simulate_machine};
+use truecut::motion::{
+    ContourPrediction, Machine, ServoAxis, contour_error, gcode, interpolate, simulate_machine,
+};
 
 fn machine(five: bool) -> Machine {
     let lin = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.02, "tc": 0.0005});
@@ -132,17 +135,19 @@ fn run(name: &str, five: bool, text: &str) {
     let (wall, cpu) = (w_int + w_servo + w_con, c_int + c_servo + c_con);
     let machine_s = *traj.t.last().unwrap();
     let n = traj.t.len();
-    // The HTTP answer: rows per period.
-    let (w_enc, c_enc, bytes) = timed(|| {
-        let rows = |cols: &Vec<Vec<f64>>| -> Vec<Vec<f64>> {
-            (0..n)
-                .map(|i| cols.iter().map(|c| c[i]).collect())
-                .collect()
-        };
-        let body = json!({"t": traj.t, "commanded": rows(&traj.axes), "actual": rows(&actual),
-            "contour_error": rep.contour_error, "max": rep.max, "rms": rep.rms});
-        serde_json::to_vec(&body).unwrap()
-    });
+    // The HTTP answer, encoded exactly as the route does (streaming rows, no copies).
+    let prediction = ContourPrediction {
+        commanded: traj,
+        actual,
+        report: rep,
+    };
+    let (w_enc, c_enc, bytes) =
+        timed(|| truecut::api::contour::encode_answer(&m, &prediction).expect("encodes"));
+    let ContourPrediction {
+        commanded: traj,
+        actual,
+        report: rep,
+    } = prediction;
     // Baseline: naive RK4 (10 sub-steps) on every axis, same commands.
     let (w_rk4, c_rk4, base) = timed(|| {
         m.axes

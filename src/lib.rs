@@ -16,10 +16,13 @@
 //! - [`nn`]: small dense networks (MLP): z-score, dropout, SGD-momentum/Adam, early stopping, binary model format (seeds 000, 001, 004).
 //! - [`volumetric`]: volumetric error maps (seeds 001, 004): trilinear table, 3-8-3 network, ISO 230-1 rigid-body model, hybrid, auto by CV, compensation tables.
 //! - [`motion`]: contour error from G-code (seed 003): G-code reader, RTCP interpolation, kinematics, servo cascade, contour error.
+//! - [`signal`]: machining-error decomposition (seed 002): VMD, EMD, wavelets, Whittaker smoothing, screening, coarse-to-fine in 1-D and on 2-D grids.
+//! - [`compensation`]: normal-offset compensation (seed 002): compensated points, reconstructed compensated surface, compensated CL points.
 //! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check.
 
 pub mod api;
 pub mod cli;
+pub mod compensation;
 pub mod config;
 pub mod gap;
 pub mod geometry;
@@ -27,5 +30,6 @@ pub mod jobs;
 pub mod motion;
 pub mod nn;
 pub mod server;
+pub mod signal;
 pub mod store;
 pub mod volumetric;

@@ -52,7 +52,7 @@ pub struct GapRequest {
     /// Part: measurement id.
     #[serde(default)]
     pub measurement: Option<String>,
-    /// Part: simulated deviation per point, mm.
+    /// Part: simulated deviation per point, mm (default: volumetric map along the normals, else 0).
     #[serde(default)]
     pub predicted: Option<Vec<f64>>,
     /// Part: cutting time per point, s.
@@ -469,17 +469,22 @@ async fn diagnose_part_route(state: &AppState, machine: &str, req: GapRequest) -
         points: surface.points,
         normals: surface.normals,
     };
-    // The service has no part-deviation model of its own yet: 0 unless the caller sends one.
-    let source = if req.predicted.is_some() {
-        "caller"
-    } else {
-        "zero"
+    // The service's own prediction: the machine's volumetric map along the normals, if one is
+    // stored (e·n, volumetric::normal_deviation); 0 otherwise.
+    let own: Option<Vec<f64>> = super::volumetric::load_map(state, machine)
+        .await?
+        .map(|map| crate::volumetric::normal_deviation(&map, &grid.points, &grid.normals));
+    let source = match (&req.predicted, &own) {
+        (Some(_), _) => "caller",
+        (None, Some(_)) => "volumetric-map",
+        (None, None) => "zero",
     };
+    let main_predicted = req.predicted.or_else(|| own.clone());
     let main = part_block(
         "main",
         &grid,
         main_m.deviations,
-        req.predicted,
+        main_predicted,
         req.time,
         req.approach,
     )?;
@@ -496,7 +501,7 @@ async fn diagnose_part_route(state: &AppState, machine: &str, req: GapRequest) -
                 "validation",
                 &grid,
                 vm.deviations,
-                body.predicted,
+                body.predicted.or(own),
                 body.time,
                 body.approach,
             )?)

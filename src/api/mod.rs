@@ -6,7 +6,9 @@
 //! the `.route("...")` literals of `src/api/*.rs` and compares them with `openapi.yaml`.
 
 pub mod auth;
+pub mod compensation;
 pub mod contour;
+pub mod decomposition;
 pub mod error;
 pub mod extract;
 pub mod gap;
@@ -65,6 +67,8 @@ pub fn router(state: AppState) -> Router {
         .merge(volumetric::routes())
         .merge(gap::routes())
         .merge(step_error::routes())
+        .merge(decomposition::routes())
+        .merge(compensation::routes())
         .fallback(middleware::fallback)
         // Innermost first: auth sees only routed requests; the problem+json rewrite covers
         // framework rejections (405, path errors); metrics see the final status.

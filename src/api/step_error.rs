@@ -20,8 +20,8 @@ use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, check_id, is_json};
 use super::lookup::{require_machine, require_surface};
 use crate::geometry::{
-    self, HeightSurface, PathPlan, StepError, StepErrorSegment, StepErrorSolver, StepFeatures, grid_segments,
-    height_surface_segments,
+    self, HeightSurface, PathPlan, StepError, StepErrorSegment, StepErrorSolver, StepFeatures,
+    grid_segments, height_surface_segments,
 };
 use crate::nn::{self, Activation, Init, Mlp, Regressor, TrainConfig, gather_rows, split_indices};
 pub use json::SegmentBatch;
@@ -37,9 +37,18 @@ pub fn routes() -> Router<AppState> {
     Router::new()
         .route("/v1/step-error", post(exact))
         .route("/v1/step-error/samples", post(samples))
-        .route("/v1/machines/{machine}/surfaces/{surface}/step-error-samples", post(surface_samples))
-        .route("/v1/machines/{machine}/surfaces/{surface}/step-error-model", post(train).get(model_info))
-        .route("/v1/machines/{machine}/surfaces/{surface}/step-error-model/predict", post(predict))
+        .route(
+            "/v1/machines/{machine}/surfaces/{surface}/step-error-samples",
+            post(surface_samples),
+        )
+        .route(
+            "/v1/machines/{machine}/surfaces/{surface}/step-error-model",
+            post(train).get(model_info),
+        )
+        .route(
+            "/v1/machines/{machine}/surfaces/{surface}/step-error-model/predict",
+            post(predict),
+        )
 }
 
 impl From<geometry::Error> for ApiError {
@@ -55,10 +64,13 @@ impl From<geometry::Error> for ApiError {
                     ApiError::unprocessable(detail)
                 }
             }
-            G::NonFinite { .. } | G::InvalidParameter { .. } | G::Shape { .. } => ApiError::bad_request(e.to_string()),
-            G::TooFewPoints { .. } | G::DuplicatePoints { .. } | G::ZeroLengthStep | G::InconsistentRadius { .. } => {
-                ApiError::unprocessable(e.to_string())
+            G::NonFinite { .. } | G::InvalidParameter { .. } | G::Shape { .. } => {
+                ApiError::bad_request(e.to_string())
             }
+            G::TooFewPoints { .. }
+            | G::DuplicatePoints { .. }
+            | G::ZeroLengthStep
+            | G::InconsistentRadius { .. } => ApiError::unprocessable(e.to_string()),
         }
     }
 }
@@ -67,9 +79,10 @@ impl From<nn::Error> for ApiError {
     fn from(e: nn::Error) -> Self {
         use nn::Error as N;
         match e {
-            N::InvalidParameter { .. } | N::TooFewLayers(_) | N::EmptyLayer { .. } | N::NonFinite { .. } => {
-                ApiError::bad_request(e.to_string())
-            }
+            N::InvalidParameter { .. }
+            | N::TooFewLayers(_)
+            | N::EmptyLayer { .. }
+            | N::NonFinite { .. } => ApiError::bad_request(e.to_string()),
             N::TooFewSamples { .. } | N::Diverged { .. } | N::Incompatible(_) | N::Shape { .. } => {
                 ApiError::unprocessable(e.to_string())
             }
@@ -102,22 +115,32 @@ fn check_tool_radius(r: f64) -> ApiResult<()> {
 /// Decodes `{"tool_radius"?: mm, "segments": [...]}` without building a `Vec` per segment.
 fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f64>, SegmentBatch)> {
     if !is_json(headers) {
-        return Err(ApiError::unsupported_media_type("send the body with Content-Type: application/json"));
+        return Err(ApiError::unsupported_media_type(
+            "send the body with Content-Type: application/json",
+        ));
     }
     if body.is_empty() {
-        return Err(ApiError::bad_request("the request body is empty; send {\"tool_radius\": mm, \"segments\": [...]}"));
+        return Err(ApiError::bad_request(
+            "the request body is empty; send {\"tool_radius\": mm, \"segments\": [...]}",
+        ));
     }
-    let req: SegmentsBody = serde_json::from_slice(body).map_err(|e| ApiError::bad_request(format!("invalid JSON body: {e}")))?;
+    let req: SegmentsBody = serde_json::from_slice(body)
+        .map_err(|e| ApiError::bad_request(format!("invalid JSON body: {e}")))?;
     if let Some(r) = req.tool_radius {
         check_tool_radius(r)?;
     }
     let raw = req.segments.get().as_bytes();
     let ranges = json::element_ranges(raw).map_err(ApiError::bad_request)?;
     if ranges.is_empty() {
-        return Err(ApiError::bad_request("segments is empty: send at least one {\"cl\": [...], \"cc\": [...]}"));
+        return Err(ApiError::bad_request(
+            "segments is empty: send at least one {\"cl\": [...], \"cc\": [...]}",
+        ));
     }
     // Parse in parallel at segment boundaries, then concatenate.
-    let threads = std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).min(8);
+    let threads = std::thread::available_parallelism()
+        .map(|t| t.get())
+        .unwrap_or(1)
+        .min(8);
     let per = ranges.len().div_ceil(threads).max(2048);
     let parts: Vec<Result<SegmentBatch, String>> = std::thread::scope(|s| {
         let hs: Vec<_> = ranges
@@ -130,7 +153,9 @@ fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f64>, 
                 })
             })
             .collect();
-        hs.into_iter().map(|h| h.join().unwrap_or_else(|_| Err("decoder crashed".into()))).collect()
+        hs.into_iter()
+            .map(|h| h.join().unwrap_or_else(|_| Err("decoder crashed".into())))
+            .collect()
     });
     let mut all = SegmentBatch::default();
     all.start.push(0);
@@ -147,7 +172,10 @@ fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f64>, 
 /// Exact step errors of a batch, split over the machine's cores.
 fn solve_batch(r: f64, batch: &SegmentBatch) -> Result<Vec<StepError>, geometry::Error> {
     let n = batch.len();
-    let threads = std::thread::available_parallelism().map(|t| t.get()).unwrap_or(1).min(8);
+    let threads = std::thread::available_parallelism()
+        .map(|t| t.get())
+        .unwrap_or(1)
+        .min(8);
     let per = n.div_ceil(threads).max(2048);
     let parts: Vec<Result<Vec<StepError>, geometry::Error>> = std::thread::scope(|s| {
         let hs: Vec<_> = (0..n)
@@ -158,13 +186,20 @@ fn solve_batch(r: f64, batch: &SegmentBatch) -> Result<Vec<StepError>, geometry:
                     (from..(from + per).min(n))
                         .map(|i| {
                             let (cl, cc) = batch.get(i);
-                            solver.solve(r, cl, cc).map_err(|e| geometry::Error::InSegment { index: i, source: Box::new(e) })
+                            solver
+                                .solve(r, cl, cc)
+                                .map_err(|e| geometry::Error::InSegment {
+                                    index: i,
+                                    source: Box::new(e),
+                                })
                         })
                         .collect()
                 })
             })
             .collect();
-        hs.into_iter().map(|h| h.join().expect("step-error worker panicked")).collect()
+        hs.into_iter()
+            .map(|h| h.join().expect("step-error worker panicked"))
+            .collect()
     });
     let mut out = Vec::with_capacity(n);
     for p in parts {
@@ -186,7 +221,11 @@ struct ExactAnswer<'a> {
     unit: &'static str,
 }
 
-async fn exact(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -> ApiResult<Response> {
+async fn exact(
+    State(state): State<AppState>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<Response> {
     let out = state
         .jobs
         .run(move || -> ApiResult<Vec<u8>> {
@@ -194,8 +233,19 @@ async fn exact(State(state): State<AppState>, headers: HeaderMap, body: Bytes) -
             let r = r.ok_or_else(|| ApiError::bad_request("tool_radius (mm) is required"))?;
             let errs = solve_batch(r, &batch)?;
             let e: Vec<f64> = errs.iter().map(|e| e.error_mm).collect();
-            let inflections = errs.iter().enumerate().filter(|(_, e)| e.inflection).map(|(i, _)| i).collect();
-            serde_json::to_vec(&ExactAnswer { step_errors: &e, inflections, tool_radius: r, unit: "mm" }).map_err(ApiError::internal)
+            let inflections = errs
+                .iter()
+                .enumerate()
+                .filter(|(_, e)| e.inflection)
+                .map(|(i, _)| i)
+                .collect();
+            serde_json::to_vec(&ExactAnswer {
+                step_errors: &e,
+                inflections,
+                tool_radius: r,
+                unit: "mm",
+            })
+            .map_err(ApiError::internal)
         })
         .await??;
     Ok(json_response(out))
@@ -247,7 +297,9 @@ struct PlanWithOptionalRadius {
 impl PlanWithOptionalRadius {
     fn resolve(&self, surface_radius: Option<f64>) -> ApiResult<PathPlan> {
         let r = self.tool_radius_mm.or(surface_radius).ok_or_else(|| {
-            ApiError::bad_request("plan.tool_radius_mm is required (the surface has no tool_radius stored)")
+            ApiError::bad_request(
+                "plan.tool_radius_mm is required (the surface has no tool_radius stored)",
+            )
         })?;
         check_tool_radius(r)?;
         Ok(PathPlan {
@@ -284,18 +336,29 @@ fn labelled_samples_json(r: f64, segs: Vec<StepErrorSegment>) -> ApiResult<Vec<u
         segments: &segs,
         step_errors: errs.iter().map(|e| e.error_mm).collect(),
         convex: errs.iter().map(|e| e.convex).collect(),
-        inflections: errs.iter().enumerate().filter(|(_, e)| e.inflection).map(|(i, _)| i).collect(),
+        inflections: errs
+            .iter()
+            .enumerate()
+            .filter(|(_, e)| e.inflection)
+            .map(|(i, _)| i)
+            .collect(),
         unit: "mm",
     })
     .map_err(ApiError::internal)
 }
 
-async fn samples(State(state): State<AppState>, ApiJson(req): ApiJson<SamplesRequest>) -> ApiResult<Response> {
+async fn samples(
+    State(state): State<AppState>,
+    ApiJson(req): ApiJson<SamplesRequest>,
+) -> ApiResult<Response> {
     check_tool_radius(req.plan.tool_radius_mm)?;
     let surface = match req.surface {
         SampleSurface::Height(h) => h,
-        SampleSurface::Reference(id) => HeightSurface::reference(id)
-            .ok_or_else(|| ApiError::bad_request(format!("surface.reference must be 1, 2 or 3 (the study's surfaces), got {id}")))?,
+        SampleSurface::Reference(id) => HeightSurface::reference(id).ok_or_else(|| {
+            ApiError::bad_request(format!(
+                "surface.reference must be 1, 2 or 3 (the study's surfaces), got {id}"
+            ))
+        })?,
     };
     let out = state
         .jobs
@@ -394,8 +457,17 @@ fn model_missing(machine: &str, surface: &str) -> ApiError {
     ))
 }
 
-async fn load_model(state: &AppState, machine: &str, surface: &str) -> ApiResult<(Regressor, ModelMeta)> {
-    let bytes = state.store.models().load(machine, Some(surface), MODEL_KIND).await?.ok_or_else(|| model_missing(machine, surface))?;
+async fn load_model(
+    state: &AppState,
+    machine: &str,
+    surface: &str,
+) -> ApiResult<(Regressor, ModelMeta)> {
+    let bytes = state
+        .store
+        .models()
+        .load(machine, Some(surface), MODEL_KIND)
+        .await?
+        .ok_or_else(|| model_missing(machine, surface))?;
     let reg = Regressor::from_bytes(&bytes).map_err(ApiError::internal)?;
     let meta: ModelMeta = serde_json::from_str(&reg.metadata).map_err(ApiError::internal)?;
     Ok((reg, meta))
@@ -427,9 +499,15 @@ async fn train(
     };
     // Samples: sent, or generated from the stored nominal grid.
     let (r, segments) = match (req.segments, &req.generate) {
-        (Some(_), Some(_)) => return Err(ApiError::bad_request("send either segments or generate, not both")),
+        (Some(_), Some(_)) => {
+            return Err(ApiError::bad_request(
+                "send either segments or generate, not both",
+            ));
+        }
         (Some(segs), None) => {
-            let r = req.tool_radius.or(stored.tool_radius).ok_or_else(|| ApiError::bad_request("tool_radius (mm) is required with segments"))?;
+            let r = req.tool_radius.or(stored.tool_radius).ok_or_else(|| {
+                ApiError::bad_request("tool_radius (mm) is required with segments")
+            })?;
             check_tool_radius(r)?;
             if segs.is_empty() {
                 return Err(ApiError::bad_request("segments is empty"));
@@ -448,23 +526,33 @@ async fn train(
         }
     };
     if segments.len() < 10 {
-        return Err(ApiError::unprocessable(format!("{} segments are too few to train on: send at least 10", segments.len())));
+        return Err(ApiError::unprocessable(format!(
+            "{} segments are too few to train on: send at least 10",
+            segments.len()
+        )));
     }
     let preset = req.preset.unwrap_or_default();
     let (features, hidden) = match &base {
         Some((reg, meta)) => {
             if req.hidden.is_some() || req.features.is_some() {
-                return Err(ApiError::bad_request("hidden and features come from the base model when fine-tuning: drop them"));
+                return Err(ApiError::bad_request(
+                    "hidden and features come from the base model when fine-tuning: drop them",
+                ));
             }
             let sizes = reg.mlp().sizes();
             (meta.features, sizes[1..sizes.len() - 1].to_vec())
         }
         None => {
-            let f = req.features.unwrap_or(StepFeatures { two_sided: true, ..StepFeatures::local() });
+            let f = req.features.unwrap_or(StepFeatures {
+                two_sided: true,
+                ..StepFeatures::local()
+            });
             f.validate()?;
             let hidden = req.hidden.clone().unwrap_or_else(|| vec![28, 20]);
             if hidden.is_empty() || hidden.len() > 8 || hidden.iter().any(|&h| h == 0 || h > 1024) {
-                return Err(ApiError::bad_request("hidden must list 1 to 8 layer sizes, each 1..=1024 (default [28, 20])"));
+                return Err(ApiError::bad_request(
+                    "hidden must list 1 to 8 layer sizes, each 1..=1024 (default [28, 20])",
+                ));
             }
             (f, hidden)
         }
@@ -479,14 +567,23 @@ async fn train(
     }
     if let Some(e) = req.epochs {
         if !(1..=20_000).contains(&e) {
-            return Err(ApiError::bad_request(format!("epochs must be in 1..=20000, got {e}")));
+            return Err(ApiError::bad_request(format!(
+                "epochs must be in 1..=20000, got {e}"
+            )));
         }
         cfg.epochs = e;
     }
     if let Some(lr) = req.learning_rate {
         cfg.optimizer = match cfg.optimizer {
             nn::Optimizer::Sgd { momentum, .. } => nn::Optimizer::Sgd { lr, momentum },
-            nn::Optimizer::Adam { beta1, beta2, eps, .. } => nn::Optimizer::Adam { lr, beta1, beta2, eps },
+            nn::Optimizer::Adam {
+                beta1, beta2, eps, ..
+            } => nn::Optimizer::Adam {
+                lr,
+                beta1,
+                beta2,
+                eps,
+            },
         };
     }
     if let Some(d) = req.dropout {
@@ -498,19 +595,43 @@ async fn train(
     cfg.seed = req.seed.unwrap_or(0);
     let test_fraction = req.test_fraction.unwrap_or(0.3);
     if !(0.0..=0.9).contains(&test_fraction) {
-        return Err(ApiError::bad_request(format!("test_fraction must be in [0, 0.9] (default 0.3), got {test_fraction}")));
+        return Err(ApiError::bad_request(format!(
+            "test_fraction must be in [0, 0.9] (default 0.3), got {test_fraction}"
+        )));
     }
-    let init = if preset == Preset::Paper { Init::StandardNormal } else { Init::He };
+    let init = if preset == Preset::Paper {
+        Init::StandardNormal
+    } else {
+        Init::He
+    };
     let store = state.store.clone();
     let handle = tokio::runtime::Handle::current();
-    let base_name = req.base.map(|b| json!({"machine": b.machine, "surface": b.surface}));
+    let base_name = req
+        .base
+        .map(|b| json!({"machine": b.machine, "surface": b.surface}));
     let id = state
         .jobs
         .submit("step_error_training", move |progress| {
-            let job = TrainJob { r, features, hidden, init, cfg, test_fraction, base: base.map(|b| b.0), base_name };
-            let (reg, result) = job.run(&segments, &|p| progress.set(p)).map_err(|e| e.detail().to_string())?;
+            let job = TrainJob {
+                r,
+                features,
+                hidden,
+                init,
+                cfg,
+                test_fraction,
+                base: base.map(|b| b.0),
+                base_name,
+            };
+            let (reg, result) = job
+                .run(&segments, &|p| progress.set(p))
+                .map_err(|e| e.detail().to_string())?;
             handle
-                .block_on(store.models().save(&machine, Some(&surface), MODEL_KIND, &reg.to_bytes()))
+                .block_on(store.models().save(
+                    &machine,
+                    Some(&surface),
+                    MODEL_KIND,
+                    &reg.to_bytes(),
+                ))
                 .map_err(|e| format!("the model was trained but could not be saved: {e:#}"))?;
             Ok(result)
         })
@@ -518,16 +639,24 @@ async fn train(
     Ok((StatusCode::ACCEPTED, ApiJson(json!({"job": id}))))
 }
 
-/// The training work, off the async runtime.
-struct TrainJob {
-    r: f64,
-    features: StepFeatures,
-    hidden: Vec<usize>,
-    init: Init,
-    cfg: TrainConfig,
-    test_fraction: f64,
-    base: Option<Regressor>,
-    base_name: Option<Value>,
+/// The training work, off the async runtime (also used by `truecut step train`).
+pub struct TrainJob {
+    /// Tool radius of the samples, mm.
+    pub r: f64,
+    /// Network inputs and outputs (ignored when fine-tuning: the base's are used).
+    pub features: StepFeatures,
+    /// Hidden layer sizes (ignored when fine-tuning).
+    pub hidden: Vec<usize>,
+    /// Weight initialisation.
+    pub init: Init,
+    /// Training hyper-parameters.
+    pub cfg: TrainConfig,
+    /// Held-out part for the reported test errors (0.3 = the paper's 70/30).
+    pub test_fraction: f64,
+    /// Model to fine-tune, if any.
+    pub base: Option<Regressor>,
+    /// How to name the base in the report.
+    pub base_name: Option<Value>,
 }
 
 /// (max, mean) absolute error, µm.
@@ -542,13 +671,49 @@ fn abs_errors(pred: &[f64], truth: &[f64]) -> (f64, f64) {
 }
 
 impl TrainJob {
-    fn run(self, segs: &[StepErrorSegment], progress: &dyn Fn(f64)) -> ApiResult<(Regressor, Value)> {
-        let f = self.features;
+    /// A fresh network with the default inputs ([`StepFeatures::local`], two-sided), hidden
+    /// [28, 20], He init and [`TrainConfig::default`].
+    pub fn new(tool_radius_mm: f64) -> Self {
+        TrainJob {
+            r: tool_radius_mm,
+            features: StepFeatures {
+                two_sided: true,
+                ..StepFeatures::local()
+            },
+            hidden: vec![28, 20],
+            init: Init::He,
+            cfg: TrainConfig::default(),
+            test_fraction: 0.3,
+            base: None,
+            base_name: None,
+        }
+    }
+
+    /// Labels `segs` exactly, trains (or fine-tunes the base), and returns the model (metadata
+    /// filled) and the report JSON; `progress` receives 0..1.
+    pub fn run(
+        self,
+        segs: &[StepErrorSegment],
+        progress: &dyn Fn(f64),
+    ) -> ApiResult<(Regressor, Value)> {
+        let f = match &self.base {
+            Some(b) => serde_json::from_str::<ModelMeta>(&b.metadata)
+                .map(|m| m.features)
+                .unwrap_or(self.features),
+            None => self.features,
+        };
         let mut solver = StepErrorSolver::default().both_branches(f.two_sided);
         let exact: Vec<StepError> = segs
             .iter()
             .enumerate()
-            .map(|(i, s)| solver.solve(self.r, s.cl, &s.cc).map_err(|e| geometry::Error::InSegment { index: i, source: Box::new(e) }))
+            .map(|(i, s)| {
+                solver
+                    .solve(self.r, s.cl, &s.cc)
+                    .map_err(|e| geometry::Error::InSegment {
+                        index: i,
+                        source: Box::new(e),
+                    })
+            })
             .collect::<Result<_, _>>()?;
         progress(0.05);
         let (x, convex) = f.matrix(self.r, segs.iter().map(|s| (s.cl, &s.cc[..])))?;
@@ -556,11 +721,17 @@ impl TrainJob {
         let y_um: Vec<f64> = exact.iter().map(|e| e.error_mm * 1000.0).collect();
         let (w, no) = (f.len(), f.n_outputs());
         let (train_idx, test_idx) = split_indices(segs.len(), self.test_fraction, self.cfg.seed);
-        let (fit_pos, val_pos) = split_indices(train_idx.len(), if self.base.is_some() { 0.2 } else { 0.1 }, self.cfg.seed + 1);
+        let (fit_pos, val_pos) = split_indices(
+            train_idx.len(),
+            if self.base.is_some() { 0.2 } else { 0.1 },
+            self.cfg.seed + 1,
+        );
         let pick = |pos: &[usize]| pos.iter().map(|&i| train_idx[i]).collect::<Vec<_>>();
         let (fit, val) = (pick(&fit_pos), pick(&val_pos));
         if fit.is_empty() || val.is_empty() {
-            return Err(ApiError::unprocessable("too few segments to split into training and validation parts: send more"));
+            return Err(ApiError::unprocessable(
+                "too few segments to split into training and validation parts: send more",
+            ));
         }
         let (xf, tf) = (gather_rows(&x, w, &fit), gather_rows(&t, no, &fit));
         let (xv, tv) = (gather_rows(&x, w, &val), gather_rows(&t, no, &val));
@@ -588,8 +759,15 @@ impl TrainJob {
                 let mut sizes = vec![w];
                 sizes.extend(&self.hidden);
                 sizes.push(no);
-                let mlp = Mlp::new(&sizes, Activation::Relu, Activation::Identity, self.init, self.cfg.seed)?;
-                let (reg, rep) = Regressor::fit(mlp, &xf, &tf, Some((&xv, &tv)), &self.cfg, &mut on_epoch)?;
+                let mlp = Mlp::new(
+                    &sizes,
+                    Activation::Relu,
+                    Activation::Identity,
+                    self.init,
+                    self.cfg.seed,
+                )?;
+                let (reg, rep) =
+                    Regressor::fit(mlp, &xf, &tf, Some((&xv, &tv)), &self.cfg, &mut on_epoch)?;
                 (reg, rep, None)
             }
         };
@@ -626,7 +804,16 @@ impl TrainJob {
     }
 }
 
-async fn model_info(State(state): State<AppState>, Path((machine, surface)): Path<(String, String)>) -> ApiResult<ApiJson<Value>> {
+/// Decodes a model file's metadata: (features, training tool radius in mm).
+pub fn model_features(reg: &Regressor) -> ApiResult<(StepFeatures, f64)> {
+    let meta: ModelMeta = serde_json::from_str(&reg.metadata).map_err(ApiError::internal)?;
+    Ok((meta.features, meta.tool_radius_mm))
+}
+
+async fn model_info(
+    State(state): State<AppState>,
+    Path((machine, surface)): Path<(String, String)>,
+) -> ApiResult<ApiJson<Value>> {
     require_surface(&state, &machine, &surface).await?;
     let (reg, meta) = load_model(&state, &machine, &surface).await?;
     Ok(ApiJson(json!({
@@ -668,8 +855,18 @@ async fn predict(
             let f = meta.features;
             let (x, convex) = f.matrix(r, (0..batch.len()).map(|i| batch.get(i)))?;
             let y = reg.predict_parallel(&x, 0)?;
-            let e: Vec<f64> = f.combine(&y, &convex).into_iter().map(|v| v / 1000.0).collect();
-            serde_json::to_vec(&PredictAnswer { step_errors: &e, tool_radius: r, unit: "mm", model: MODEL_KIND }).map_err(ApiError::internal)
+            let e: Vec<f64> = f
+                .combine(&y, &convex)
+                .into_iter()
+                .map(|v| v / 1000.0)
+                .collect();
+            serde_json::to_vec(&PredictAnswer {
+                step_errors: &e,
+                tool_radius: r,
+                unit: "mm",
+                model: MODEL_KIND,
+            })
+            .map_err(ApiError::internal)
         })
         .await??;
     Ok(json_response(out))

@@ -64,8 +64,7 @@ fn load_machine(args: &Args) -> anyhow::Result<(String, serde_json::Value)> {
         .enable_all()
         .build()?;
     let def = runtime.block_on(async {
-        let store =
-            crate::store::Store::open(&args.data_dir, args.database_url.as_deref()).await?;
+        let store = crate::store::Store::open(&args.data_dir, args.database_url.as_deref()).await?;
         store.get_machine(&args.machine).await
     })?;
     match def {

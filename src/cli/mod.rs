@@ -2,8 +2,11 @@
 //! `pub struct Args` (clap) and `pub fn run(args: Args) -> anyhow::Result<()>`.
 
 pub mod contour;
+pub mod decompose;
 pub mod demo;
+pub mod gap;
 pub mod serve;
+pub mod step;
 pub mod volumetric;
 
 use clap::{Parser, Subcommand};
@@ -24,8 +27,14 @@ pub enum Command {
     Serve(crate::config::Config),
     /// Predict the contour error of a G-code program on a machine (machine JSON file or stored id).
     Contour(contour::Args),
+    /// Split a machining error (CSV or JSON) into systematic and random parts (seed 002).
+    Decompose(decompose::Args),
+    /// Sim-to-real gap diagnosis: `selfcheck`, `diagnose` (a motion body) or `csv` (a trace).
+    Gap(gap::Args),
     /// Fit a volumetric error map to measured nodes (CSV), export a compensation table.
     Volumetric(volumetric::Args),
+    /// Step error of ball-end toolpaths (seed 000): `exact`, `samples`, `train`, `predict`.
+    Step(step::Args),
 }
 
 /// Runs a parsed command line.
@@ -33,7 +42,10 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Serve(config) => serve::run(config),
         Command::Contour(a) => contour::run(a),
+        Command::Decompose(a) => decompose::run(a),
+        Command::Gap(a) => gap::run(a),
         Command::Volumetric(a) => volumetric::run(a),
+        Command::Step(a) => step::run(a),
     }
 }
 

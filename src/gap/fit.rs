@@ -211,7 +211,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                 .map(|k| {
                     let p = &data.plants[k];
                     let grid: Vec<f64> = (0..13)
-                        .map(|i| p.servo.kv * 0.6 * (1.6f64 / 0.6).powf(i as f64 / 12.0))
+                        .map(|i| p.servo.kv * 0.5 * 4f64.powf(i as f64 / 12.0))
                         .collect();
                     let loss = |kv: f64| {
                         if grid.contains(&kv) {

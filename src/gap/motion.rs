@@ -119,7 +119,9 @@ pub fn gap_stats(measured: &[Vec<f64>], simulated: &[Vec<f64>]) -> GapStats {
 
 /// Noise standard deviation of a residual (mm): `1.4826·median|Δ²r| / √6` pooled over axes —
 /// white noise of variance σ² has second differences of variance 6σ², while the smooth part of
-/// the gap barely contributes. Bad cases: gaps with many steps per sample inflate it.
+/// the gap barely contributes; when more than half the second differences are exactly zero
+/// (quantized data) the RMS of the second differences is used instead. Bad cases: gaps with many
+/// steps per sample inflate it.
 pub fn noise_sigma(residual: &[Vec<f64>]) -> f64 {
     let mut d2: Vec<f64> = residual
         .iter()
@@ -128,9 +130,13 @@ pub fn noise_sigma(residual: &[Vec<f64>]) -> f64 {
     if d2.is_empty() {
         return 0.0;
     }
+    let rms = (d2.iter().map(|d| d * d).sum::<f64>() / d2.len() as f64).sqrt() / 6f64.sqrt();
     let mid = d2.len() / 2;
     let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
-    1.4826 * *m / 6f64.sqrt()
+    let robust = 1.4826 * *m / 6f64.sqrt();
+    // quantized measurements (most second differences exactly 0) make the median 0: fall back
+    // to the RMS of the second differences rather than claim a noiseless signal
+    if robust > 0.0 { robust } else { rms }
 }
 
 fn check_block(

@@ -68,20 +68,19 @@ pub fn element_ranges(raw: &[u8]) -> Result<Vec<(usize, usize)>, String> {
                 }
             }
             b']' | b'}' => {
-                if depth == 2 && c == b'}' {
-                    if let Some(s) = start.take() {
-                        out.push((s, k + 1));
-                    }
-                } else if depth == 2 && c == b']' {
-                    if let Some(s) = start.take() {
-                        out.push((s, k + 1));
-                    }
+                if depth == 2
+                    && let Some(s) = start.take()
+                {
+                    out.push((s, k + 1));
                 }
                 depth = depth.saturating_sub(1);
             }
             b',' if depth == 1 => {}
             c if depth == 1 && !c.is_ascii_whitespace() => {
-                return Err(format!("segments[{}] must be an object with cl and cc", out.len()));
+                return Err(format!(
+                    "segments[{}] must be an object with cl and cc",
+                    out.len()
+                ));
             }
             _ => {}
         }
@@ -118,7 +117,12 @@ impl Cursor<'_> {
     fn number(&mut self) -> Option<f64> {
         self.ws();
         let s = self.i;
-        while self.i < self.b.len() && matches!(self.b[self.i], b'0'..=b'9' | b'-' | b'+' | b'.' | b'e' | b'E') {
+        while self.i < self.b.len()
+            && matches!(
+                self.b[self.i],
+                b'0'..=b'9' | b'-' | b'+' | b'.' | b'e' | b'E'
+            )
+        {
             self.i += 1;
         }
         std::str::from_utf8(&self.b[s..self.i]).ok()?.parse().ok()
@@ -155,12 +159,20 @@ impl Cursor<'_> {
 }
 
 /// Decodes the segment objects at `ranges` of `raw` (indices from `first`) into `out`.
-pub fn decode_into(raw: &[u8], ranges: &[(usize, usize)], first: usize, out: &mut SegmentBatch) -> Result<(), String> {
+pub fn decode_into(
+    raw: &[u8],
+    ranges: &[(usize, usize)],
+    first: usize,
+    out: &mut SegmentBatch,
+) -> Result<(), String> {
     out.start.push(out.cc.len());
     for (k, &(s, e)) in ranges.iter().enumerate() {
         let idx = first + k;
         let bad = |what: &str| format!("segments[{idx}]: {what}");
-        let mut c = Cursor { b: &raw[s..e], i: 0 };
+        let mut c = Cursor {
+            b: &raw[s..e],
+            i: 0,
+        };
         if !c.eat(b'{') {
             return Err(bad("must be an object with cl and cc"));
         }
@@ -168,7 +180,10 @@ pub fn decode_into(raw: &[u8], ranges: &[(usize, usize)], first: usize, out: &mu
         let cc_begin = out.cc.len();
         if !c.eat(b'}') {
             loop {
-                let key = c.key().ok_or_else(|| bad("expected a field name"))?.to_vec();
+                let key = c
+                    .key()
+                    .ok_or_else(|| bad("expected a field name"))?
+                    .to_vec();
                 if !c.eat(b':') {
                     return Err(bad("expected ':'"));
                 }
@@ -185,7 +200,8 @@ pub fn decode_into(raw: &[u8], ranges: &[(usize, usize)], first: usize, out: &mu
                             let b = c.point()?;
                             c.eat(b']').then_some([a, b])
                         })();
-                        cl = pts.ok_or_else(|| bad("cl must be two points [[x,y,z],[x,y,z]] (mm)"))?;
+                        cl =
+                            pts.ok_or_else(|| bad("cl must be two points [[x,y,z],[x,y,z]] (mm)"))?;
                         have_cl = true;
                     }
                     b"cc" => {
@@ -229,7 +245,11 @@ pub fn decode_into(raw: &[u8], ranges: &[(usize, usize)], first: usize, out: &mu
         }
         if !have_cl || !have_cc {
             out.cc.truncate(cc_begin);
-            return Err(bad(if have_cl { "cc is missing" } else { "cl is missing" }));
+            return Err(bad(if have_cl {
+                "cc is missing"
+            } else {
+                "cl is missing"
+            }));
         }
         out.cl.push(cl);
         out.start.push(out.cc.len());
@@ -254,17 +274,29 @@ mod tests {
         assert_eq!(b.get(1).0, [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
         assert_eq!(b.get(1).1[3], [4.0, 5.0, 6.0]);
         for (bad, msg) in [
-            (&br#"[{"cl": [[0,0,5]], "cc": [[0,0,0]]}]"#[..], "cl must be two points"),
+            (
+                &br#"[{"cl": [[0,0,5]], "cc": [[0,0,0]]}]"#[..],
+                "cl must be two points",
+            ),
             (br#"[{"cl": [[0,0,5],[1,1,1]]}]"#, "cc is missing"),
-            (br#"[{"cl": [[0,0,5],[1,1,1]], "cc": [[0,0]], "x": 1}]"#, "cc must be an array"),
-            (br#"[{"cl": [[0,0,5],[1,1,1]], "cc": [], "x": 1}]"#, "unknown field 'x'"),
+            (
+                br#"[{"cl": [[0,0,5],[1,1,1]], "cc": [[0,0]], "x": 1}]"#,
+                "cc must be an array",
+            ),
+            (
+                br#"[{"cl": [[0,0,5],[1,1,1]], "cc": [], "x": 1}]"#,
+                "unknown field 'x'",
+            ),
             (br#"[1]"#, "must be an object"),
         ] {
             let e = element_ranges(bad).and_then(|r| {
                 let mut b = SegmentBatch::default();
                 decode_into(bad, &r, 0, &mut b)
             });
-            assert!(e.as_ref().is_err_and(|m| m.contains(msg)), "{e:?} should say {msg}");
+            assert!(
+                e.as_ref().is_err_and(|m| m.contains(msg)),
+                "{e:?} should say {msg}"
+            );
         }
     }
 }

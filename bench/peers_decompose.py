@@ -1,0 +1,145 @@
+#!/usr/bin/env python3
+"""Times the Python peer pipeline (vmdpy/lean VMD, PyEMD, PyWavelets) against truecut's
+coarse-to-fine decomposition on the same signals, in the same run, and prints the ratios.
+
+Usage (from the crate root):  python3 bench/peers_decompose.py [--sizes 2025 20000 250000]
+
+The signals are the paper's eq. 23 continued with step 0.01 (t = 1 + 0.01 k) plus
+N(0, 0.005 mm) noise (numpy default_rng(0)); they are written to a temporary folder that
+`cargo bench --bench decompose -- --signals DIR` reads, so both sides see identical input.
+Peer pipeline as REPORT.md (seed 002 reference): VMD K=7, alpha 2000, tau 0, DC 0, init 1,
+tol 1e-7, at most 500 iterations -> |r| > 0.3 -> X1; PyEMD EMD() of X1 -> screening against
+the measured error -> X2; weak parts -> db4 soft universal threshold (max level) -> X3.
+vmdpy keeps every iterate (2.2 GB at n = 20000, 28 GB at 250000), so above 20000 samples the
+peer VMD is a two-iterate NumPy transcription of vmdpy's arithmetic (as the REPORT's
+`vmd_lean`). BLAS threads are pinned to 1 as the REPORT advises for stable timings.
+"""
+import json, os, subprocess, sys, tempfile, time
+
+os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
+os.environ.setdefault("OMP_NUM_THREADS", "1")
+
+
+def ensure(pkgs):
+    import importlib
+    missing = [pip for mod, pip in pkgs if importlib.util.find_spec(mod) is None]
+    if missing:
+        subprocess.check_call([sys.executable, "-m", "pip", "install", "-q", *missing])
+
+
+ensure([("numpy", "numpy"), ("pywt", "PyWavelets"), ("PyEMD", "EMD-signal"), ("vmdpy", "vmdpy"), ("scipy", "scipy")])
+
+import numpy as np  # noqa: E402
+import pywt  # noqa: E402
+from PyEMD import EMD  # noqa: E402
+from vmdpy import VMD  # noqa: E402
+
+
+def vmd_lean(f, alpha=2000.0, tau=0.0, K=7, tol=1e-7, niter=500):
+    """vmdpy's arithmetic (mirror, one-sided Wiener updates, omega centroid), two iterates."""
+    N = len(f)
+    h = (N + 1) // 2
+    fm = np.concatenate([f[:h][::-1], f, f[h:][::-1]])
+    T = len(fm)
+    freqs = np.arange(1, T + 1) / T - 0.5 - 1 / T
+    f_hat = np.fft.fftshift(np.fft.fft(fm))
+    f_hat_plus = f_hat.copy()
+    f_hat_plus[: T // 2] = 0
+    u = np.zeros((K, T), dtype=complex)
+    omega = np.array([0.5 / K * i for i in range(K)])
+    lam = np.zeros(T, dtype=complex)
+    n, udiff = 0, tol + np.spacing(1)
+    pos = slice(T // 2, T)
+    while udiff > tol and n < niter - 1:
+        u_old = u.copy()
+        total = u.sum(axis=0)
+        for k in range(K):
+            total -= u[k]
+            u[k] = (f_hat_plus - total - lam / 2) / (1.0 + alpha * (freqs - omega[k]) ** 2)
+            p = np.abs(u[k, pos]) ** 2
+            omega[k] = np.dot(freqs[pos], p) / np.sum(p)
+            total += u[k]
+        lam = lam + tau * (total - f_hat_plus)
+        n += 1
+        d = u - u_old
+        udiff = np.spacing(1) + np.sum(np.real(d * np.conj(d))) / T
+    full = np.zeros((K, T), dtype=complex)
+    full[:, pos] = u[:, pos]
+    idx = np.arange(1, T // 2 + 1)[::-1]
+    full[:, idx] = np.conj(u[:, pos])
+    full[:, 0] = np.conj(full[:, -1])
+    modes = np.real(np.fft.ifft(np.fft.ifftshift(full, axes=1), axis=1))
+    return modes[:, h : h + N]
+
+
+def peer_c2f(x):
+    n = len(x)
+    if n <= 20000:
+        xe = x if n % 2 == 0 else np.append(x, x[-1])
+        modes, _, _ = VMD(xe, 2000.0, 0.0, 7, 0, 1, 1e-7)
+        modes = modes[:, :n]
+    else:
+        modes = vmd_lean(x)
+    r = np.array([abs(np.corrcoef(m, x)[0, 1]) for m in modes])
+    x1 = modes[r > 0.3].sum(axis=0)
+    imfs = EMD()(x1)
+    r2 = np.array([abs(np.corrcoef(c, x)[0, 1]) for c in imfs])
+    x2 = imfs[r2 > 0.3].sum(axis=0)
+    w = modes[r <= 0.3].sum(axis=0) + imfs[r2 <= 0.3].sum(axis=0)
+    c = pywt.wavedec(w, "db4", mode="symmetric")
+    sigma = np.median(np.abs(c[-1])) / 0.6745
+    lam = sigma * np.sqrt(2 * np.log(n))
+    c = [c[0]] + [pywt.threshold(d, lam, "soft") for d in c[1:]]
+    x3 = pywt.waverec(c, "db4", mode="symmetric")[:n]
+    return x2 + x3
+
+
+def main():
+    sizes = [2025, 20000, 250000]
+    if "--sizes" in sys.argv:
+        sizes = [int(s) for s in sys.argv[sys.argv.index("--sizes") + 1 :]]
+    here = os.path.dirname(os.path.abspath(__file__))
+    crate = os.path.dirname(here)
+    with tempfile.TemporaryDirectory() as tmp:
+        signals = {}
+        for n in sizes:
+            t = 1 + 0.01 * np.arange(n)
+            s = 0.04 * (np.sin(1.6 * np.pi * t) + np.cos(0.05 * np.pi * t) + 4 * np.exp(-3 * t))
+            x = s + np.random.default_rng(0).normal(0, 0.005, n)
+            signals[n] = x
+            with open(os.path.join(tmp, f"signal_{n}.json"), "w") as fh:
+                json.dump(x.tolist(), fh)
+        for n in (2025, 20000, 250000):
+            if n not in signals:  # the bench reads all three sizes
+                x = np.zeros(n) + np.random.default_rng(0).normal(0, 0.005, n)
+                with open(os.path.join(tmp, f"signal_{n}.json"), "w") as fh:
+                    json.dump(x.tolist(), fh)
+        out = subprocess.run(
+            ["cargo", "bench", "--bench", "decompose", "--", "--signals", tmp],
+            cwd=crate, check=True, capture_output=True, text=True,
+        ).stdout
+        ours = {}
+        for line in out.splitlines():
+            if line.startswith("{"):
+                d = json.loads(line)
+                ours[d["n"]] = d
+        print("| n | peers C2F (s) | truecut C2F default (s) | ratio | truecut stages 1-4 (s) | ratio |")
+        print("|---|---|---|---|---|---|")
+        for n in sizes:
+            reps = 3 if n <= 2025 else 1
+            times = []
+            for _ in range(reps):
+                t0 = time.perf_counter()
+                peer_c2f(signals[n])
+                times.append(time.perf_counter() - t0)
+            peer = sorted(times)[len(times) // 2]
+            o = ours[n]
+            print(
+                f"| {n:,} | {peer:.3f} | {o['coarse_to_fine_s']:.4f} | {peer / o['coarse_to_fine_s']:.1f}x "
+                f"| {o['stages_1_4_s']:.4f} | {peer / o['stages_1_4_s']:.1f}x |",
+                flush=True,
+            )
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,176 @@
+//! Machining-error decomposition (CONTRACT "Decomposition"; seed 002):
+//! `POST /v1/decompose` (stateless), `POST/GET .../measurements/{id}/decomposition`
+//! (computed on the measurement's deviations, stored as its current decomposition).
+//! Also the one `From<signal::Error> for ApiError`.
+
+use axum::Router;
+use axum::extract::{Path, Request, State};
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use axum::routing::post;
+use serde::Deserialize;
+use serde_json::{Value, json};
+
+use super::AppState;
+use super::auth::RequireWrite;
+use super::error::{ApiError, ApiResult};
+use super::extract::{ApiJson, check_finite, decode_json, read_body};
+use super::lookup::{require_measurement, require_surface};
+use crate::signal::{self, DecomposeParams, Method, decompose};
+
+/// Document kind under which a measurement's current decomposition is stored.
+pub const DOC_KIND: &str = "decomposition";
+/// Largest signal decomposed synchronously (CONTRACT: sync up to 250,000 samples); larger
+/// ones (up to [`signal::decompose::MAX_SAMPLES`]) run as a job (202).
+pub const MAX_SYNC: usize = 250_000;
+
+/// Routes of this resource.
+pub fn routes() -> Router<AppState> {
+    Router::new()
+        .route("/v1/decompose", post(post_decompose))
+        .route(
+            "/v1/machines/{machine}/surfaces/{surface}/measurements/{id}/decomposition",
+            post(post_measurement_decomposition).get(get_measurement_decomposition),
+        )
+}
+
+impl From<signal::Error> for ApiError {
+    fn from(e: signal::Error) -> Self {
+        use signal::Error as E;
+        match e {
+            E::NonFinite { .. }
+            | E::BadParam { .. }
+            | E::UnknownWavelet(_)
+            | E::GridMismatch { .. } => ApiError::bad_request(e.to_string()),
+            E::TooShort { .. } => ApiError::unprocessable(e.to_string()),
+        }
+    }
+}
+
+/// Body of `POST /v1/decompose`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DecomposeRequest {
+    signal: Vec<f64>,
+    #[serde(default)]
+    method: Method,
+    #[serde(default)]
+    params: DecomposeParams,
+}
+
+/// Body of `POST .../decomposition` (may be empty: defaults).
+#[derive(Debug, Default, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MeasurementRequest {
+    #[serde(default)]
+    method: Method,
+    #[serde(default)]
+    params: DecomposeParams,
+}
+
+/// Runs a decomposition on the worker pool; a job (202) above [`MAX_SYNC`] samples.
+async fn run(
+    state: &AppState,
+    x: Vec<f64>,
+    method: Method,
+    params: DecomposeParams,
+    allow_job: bool,
+) -> ApiResult<Result<Value, Response>> {
+    if x.len() > signal::decompose::MAX_SAMPLES {
+        return Err(ApiError::payload_too_large(format!(
+            "{} samples exceed the limit of {}; split the signal",
+            x.len(),
+            signal::decompose::MAX_SAMPLES
+        )));
+    }
+    if allow_job && x.len() > MAX_SYNC {
+        let id = state
+            .jobs
+            .submit("decomposition", move |p| {
+                p.set(0.05);
+                let d = decompose(&x, method, &params).map_err(|e| e.to_string())?;
+                serde_json::to_value(&d).map_err(|e| e.to_string())
+            })
+            .await?;
+        return Ok(Err(
+            (StatusCode::ACCEPTED, ApiJson(json!({ "job": id }))).into_response()
+        ));
+    }
+    let d = state
+        .jobs
+        .run(move || decompose(&x, method, &params))
+        .await??;
+    Ok(Ok(serde_json::to_value(&d).map_err(ApiError::internal)?))
+}
+
+async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResult<Response> {
+    let body = read_body(req).await?;
+    let r: DecomposeRequest = decode_json(&body)?;
+    if r.signal.is_empty() {
+        return Err(ApiError::bad_request(
+            "signal is empty; send the machining error as {\"signal\": [mm, ...]} with at least 16 samples",
+        ));
+    }
+    check_finite("signal", &r.signal)?;
+    match run(&state, r.signal, r.method, r.params, true).await? {
+        Ok(v) => Ok(ApiJson(v).into_response()),
+        Err(accepted) => Ok(accepted),
+    }
+}
+
+async fn post_measurement_decomposition(
+    State(state): State<AppState>,
+    _write: RequireWrite,
+    Path((machine, surface, id)): Path<(String, String, String)>,
+    req: Request,
+) -> ApiResult<Response> {
+    let body = read_body(req).await?;
+    let r: MeasurementRequest = if body.iter().all(|b| b.is_ascii_whitespace()) {
+        MeasurementRequest::default()
+    } else {
+        decode_json(&body)?
+    };
+    let surf = require_surface(&state, &machine, &surface).await?;
+    let m = require_measurement(&state, &machine, &surface, &id).await?;
+    if m.deviations.len() != surf.nu * surf.nv {
+        return Err(ApiError::conflict(format!(
+            "measurement '{id}' has {} deviations but surface '{surface}' now has {} x {} points; \
+             upload the measurement again for the current surface",
+            m.deviations.len(),
+            surf.nu,
+            surf.nv
+        )));
+    }
+    let mut params = r.params;
+    if params.nu.is_some() || params.nv.is_some() {
+        return Err(ApiError::bad_request(
+            "params.nu/params.nv come from the surface's grid here; leave them out",
+        ));
+    }
+    params.nu = Some(surf.nu);
+    params.nv = Some(surf.nv);
+    let key = format!("{surface}/{id}");
+    // Always answered directly, so the result can be stored as the current decomposition.
+    match run(&state, m.deviations, r.method, params, false).await? {
+        Ok(v) => {
+            state.store.put_doc(&machine, DOC_KIND, &key, &v).await?;
+            Ok(ApiJson(v).into_response())
+        }
+        Err(accepted) => Ok(accepted),
+    }
+}
+
+async fn get_measurement_decomposition(
+    State(state): State<AppState>,
+    Path((machine, surface, id)): Path<(String, String, String)>,
+) -> ApiResult<ApiJson<Value>> {
+    require_measurement(&state, &machine, &surface, &id).await?;
+    let key = format!("{surface}/{id}");
+    match state.store.get_doc(&machine, DOC_KIND, &key).await? {
+        Some(v) => Ok(ApiJson(v)),
+        None => Err(ApiError::not_found(format!(
+            "measurement '{id}' has no stored decomposition: POST \
+             /v1/machines/{machine}/surfaces/{surface}/measurements/{id}/decomposition first"
+        ))),
+    }
+}

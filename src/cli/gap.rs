@@ -1,0 +1,251 @@
+//! `truecut gap ...`: sim-to-real gap diagnosis computed locally by the gap core (no server):
+//! `selfcheck` (blind truth plants, confusion matrix), `diagnose` (a motion request body
+//! against a machine file) and `csv` (command/actual columns of a CSV trace, e.g. the real
+//! traces in `shared/data/`).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, bail};
+use serde_json::{Value, json};
+
+use crate::api::gap::{GapRequest, diagnose_motion_request};
+use crate::gap::{MotionOptions, selfcheck};
+use crate::motion::Machine;
+
+/// Sim-to-real gap diagnosis: which unmodelled effect separates the servo simulation from
+/// measured positions, where, and how far the gap shrinks once it is added.
+#[derive(Debug, clap::Args)]
+pub struct Args {
+    /// What to run.
+    #[command(subcommand)]
+    pub command: GapCommand,
+}
+
+/// `truecut gap` subcommands.
+#[derive(Debug, clap::Subcommand)]
+pub enum GapCommand {
+    /// Blind self-check: truth plants with each effect withheld (plus "none" and out-of-library
+    /// effects), diagnosed; prints the confusion matrix, accuracy, median validation shrink and
+    /// false-alarm rate.
+    Selfcheck {
+        /// Number of cases (cycling none, the 7 effects, out of library).
+        #[arg(long, default_value_t = 90)]
+        cases: usize,
+        /// First seed (cases use seed, seed+1, ...).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Worker threads.
+        #[arg(long, default_value_t = 2)]
+        threads: usize,
+        /// Print one line per case as well.
+        #[arg(long)]
+        verbose: bool,
+    },
+    /// Diagnose a motion request body (the JSON of POST .../gap-diagnosis) against a machine
+    /// definition file (the JSON of PUT /v1/machines/{id}); prints the answer JSON.
+    Diagnose {
+        /// Machine-definition JSON file.
+        #[arg(long)]
+        machine: PathBuf,
+        /// Request body JSON file (domain "motion").
+        #[arg(long)]
+        body: PathBuf,
+    },
+    /// Diagnose a CSV trace: named command and measured position columns (mm), one row a
+    /// sample `--period-s` apart; rows whose `--drop-if` column equals the value are removed.
+    Csv {
+        /// The CSV file (header row with column names).
+        file: PathBuf,
+        /// Machine-definition JSON file (its X, Y[, Z] servo models are the simulation).
+        #[arg(long)]
+        machine: PathBuf,
+        /// Sample period, s.
+        #[arg(long)]
+        period_s: f64,
+        /// Command columns, comma-separated (2 or 3), e.g. X1_CommandPosition,Y1_CommandPosition.
+        #[arg(long, value_delimiter = ',')]
+        commanded: Vec<String>,
+        /// Measured columns in the same axis order.
+        #[arg(long, value_delimiter = ',')]
+        measured: Vec<String>,
+        /// Drop rows where COLUMN=VALUE (repeatable), e.g. M1_CURRENT_FEEDRATE=50.
+        #[arg(long)]
+        drop_if: Vec<String>,
+        /// Print the full answer JSON instead of a summary.
+        #[arg(long)]
+        json: bool,
+    },
+}
+
+/// Runs `truecut gap ...`.
+pub fn run(args: Args) -> anyhow::Result<()> {
+    match args.command {
+        GapCommand::Selfcheck {
+            cases,
+            seed,
+            threads,
+            verbose,
+        } => {
+            let opts = MotionOptions {
+                threads: threads.max(1),
+                ..MotionOptions::default()
+            };
+            let started = std::time::Instant::now();
+            let report = selfcheck::run(cases, seed, &opts)?;
+            if verbose {
+                for c in &report.cases {
+                    println!(
+                        "{:<20} -> {:<20} shrink {:>6.1} %  {:?}, noise {:.2} µm",
+                        c.truth,
+                        c.verdict.name(),
+                        100.0 * c.shrink,
+                        c.program,
+                        c.sigma * 1e3
+                    );
+                }
+            }
+            print!("{}", report.render());
+            println!(
+                "elapsed {:.1} s on {threads} thread(s)",
+                started.elapsed().as_secs_f64()
+            );
+            Ok(())
+        }
+        GapCommand::Diagnose { machine, body } => {
+            let m = read_machine(&machine)?;
+            let text = std::fs::read_to_string(&body)
+                .with_context(|| format!("reading {}", body.display()))?;
+            let req: GapRequest = serde_json::from_str(&text)
+                .with_context(|| format!("parsing {}", body.display()))?;
+            if req.domain != "motion" {
+                bail!(
+                    "truecut gap diagnose runs the motion domain; part diagnoses need the server's stored surfaces"
+                );
+            }
+            let answer =
+                diagnose_motion_request(&m, &req).map_err(|e| anyhow::anyhow!("{}", e.detail()))?;
+            println!("{}", serde_json::to_string_pretty(&answer)?);
+            Ok(())
+        }
+        GapCommand::Csv {
+            file,
+            machine,
+            period_s,
+            commanded,
+            measured,
+            drop_if,
+            json,
+        } => {
+            let m = read_machine(&machine)?;
+            let (cmd_rows, meas_rows) = read_csv(&file, &commanded, &measured, &drop_if)?;
+            let n = cmd_rows.len();
+            let req: GapRequest = serde_json::from_value(json!({
+                "domain": "motion", "period_s": period_s,
+                "commanded": cmd_rows, "measured": meas_rows,
+            }))?;
+            let answer =
+                diagnose_motion_request(&m, &req).map_err(|e| anyhow::anyhow!("{}", e.detail()))?;
+            if json {
+                println!("{}", serde_json::to_string_pretty(&answer)?);
+            } else {
+                print_summary(&file, n, &answer);
+            }
+            Ok(())
+        }
+    }
+}
+
+fn read_machine(path: &PathBuf) -> anyhow::Result<Machine> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
+    let def: Value =
+        serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
+    Machine::from_json(&def).map_err(|e| anyhow::anyhow!("machine {}: {e}", path.display()))
+}
+
+type Rows = Vec<Vec<f64>>;
+
+fn read_csv(
+    file: &PathBuf,
+    commanded: &[String],
+    measured: &[String],
+    drop_if: &[String],
+) -> anyhow::Result<(Rows, Rows)> {
+    if commanded.len() != measured.len() || !(2..=3).contains(&commanded.len()) {
+        bail!("--commanded and --measured need the same 2 or 3 column names");
+    }
+    let text =
+        std::fs::read_to_string(file).with_context(|| format!("reading {}", file.display()))?;
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines
+        .next()
+        .context("the CSV is empty")?
+        .split(',')
+        .map(str::trim)
+        .collect();
+    let col = |name: &str| -> anyhow::Result<usize> {
+        header
+            .iter()
+            .position(|h| *h == name)
+            .with_context(|| format!("column '{name}' is not in the header"))
+    };
+    let ci: Vec<usize> = commanded.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
+    let mi: Vec<usize> = measured.iter().map(|c| col(c)).collect::<Result<_, _>>()?;
+    let drops: Vec<(usize, String)> = drop_if
+        .iter()
+        .map(|d| {
+            let (c, v) = d.split_once('=').context("--drop-if needs COLUMN=VALUE")?;
+            Ok((col(c)?, v.to_string()))
+        })
+        .collect::<anyhow::Result<_>>()?;
+    let (mut cmd, mut meas) = (Vec::new(), Vec::new());
+    for (i, line) in lines.enumerate() {
+        let cells: Vec<&str> = line.split(',').map(str::trim).collect();
+        if drops.iter().any(|(c, v)| {
+            cells
+                .get(*c)
+                .is_some_and(|x| x.parse::<f64>().ok() == v.parse::<f64>().ok() || x == v)
+        }) {
+            continue;
+        }
+        let get = |k: usize| -> anyhow::Result<f64> {
+            cells
+                .get(k)
+                .and_then(|x| x.parse::<f64>().ok())
+                .with_context(|| format!("row {}: column {} is not a number", i + 2, header[k]))
+        };
+        cmd.push(ci.iter().map(|&k| get(k)).collect::<Result<Vec<_>, _>>()?);
+        meas.push(mi.iter().map(|&k| get(k)).collect::<Result<Vec<_>, _>>()?);
+    }
+    Ok((cmd, meas))
+}
+
+fn print_summary(file: &std::path::Path, n: usize, a: &Value) {
+    let um = |v: &Value| v.as_f64().unwrap_or(f64::NAN) * 1e3;
+    println!(
+        "{}: {n} samples, gap rms {:.1} µm (max {:.1} µm), noise estimate {:.1} µm, verdict {}, gap after rms {:.1} µm",
+        file.display(),
+        um(&a["gap_before"]["rms"]),
+        um(&a["gap_before"]["max"]),
+        um(&a["noise_mm"]),
+        a["verdict"].as_str().unwrap_or("?"),
+        um(&a["gap_after"]["rms"]),
+    );
+    for e in a["effects"].as_array().into_iter().flatten().take(3) {
+        println!(
+            "  {:<20} score {:>7.3}  {}",
+            e["effect"].as_str().unwrap_or("?"),
+            e["score"].as_f64().unwrap_or(f64::NAN),
+            e["params"]
+        );
+    }
+    for w in a["where"].as_array().into_iter().flatten().take(3) {
+        println!(
+            "  where {}..{} share {:.2} ({})",
+            w["start"],
+            w["end"],
+            w["share"].as_f64().unwrap_or(0.0),
+            w["label"].as_str().unwrap_or("")
+        );
+    }
+}

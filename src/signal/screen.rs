@@ -1,0 +1,72 @@
+//! Pearson correlation screening of components (paper 002 section 2.2, eqs. 2 and 18).
+
+/// Pearson correlation coefficient r of two equally long series (paper eq. 2). Returns 0
+/// when either series is constant (r is undefined there; a constant component carries no
+/// correlated variation) or the lengths differ.
+pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
+    if a.len() != b.len() || a.is_empty() {
+        return 0.0;
+    }
+    let n = a.len() as f64;
+    let ma = a.iter().sum::<f64>() / n;
+    let mb = b.iter().sum::<f64>() / n;
+    let (mut sab, mut saa, mut sbb) = (0.0, 0.0, 0.0);
+    for (x, y) in a.iter().zip(b) {
+        let (dx, dy) = (x - ma, y - mb);
+        sab += dx * dy;
+        saa += dx * dx;
+        sbb += dy * dy;
+    }
+    if saa <= 0.0 || sbb <= 0.0 {
+        return 0.0;
+    }
+    sab / (saa.sqrt() * sbb.sqrt())
+}
+
+/// Screens components against a reference: r_i = pearson(component_i, reference) and
+/// strong_i = |r_i| > threshold (paper: 0.3, Cohen's "weak correlation" bound).
+pub fn screen(components: &[Vec<f64>], reference: &[f64], threshold: f64) -> (Vec<f64>, Vec<bool>) {
+    let r: Vec<f64> = components.iter().map(|c| pearson(c, reference)).collect();
+    let strong = r.iter().map(|v| v.abs() > threshold).collect();
+    (r, strong)
+}
+
+/// Sum of the selected components (zeros of length `n` when none is selected).
+pub fn sum_selected(components: &[Vec<f64>], select: &[bool], n: usize) -> Vec<f64> {
+    let mut out = vec![0.0; n];
+    for (c, &s) in components.iter().zip(select) {
+        if s {
+            for (o, v) in out.iter_mut().zip(c) {
+                *o += v;
+            }
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn pearson_known_values() {
+        let a = [1.0, 2.0, 3.0, 4.0];
+        assert!((pearson(&a, &[2.0, 4.0, 6.0, 8.0]) - 1.0).abs() < 1e-15);
+        assert!((pearson(&a, &[8.0, 6.0, 4.0, 2.0]) + 1.0).abs() < 1e-15);
+        assert_eq!(pearson(&a, &[1.0; 4]), 0.0);
+        assert!(pearson(&[1.0, 0.0, -1.0, 0.0], &[0.0, 1.0, 0.0, -1.0]).abs() < 1e-15);
+    }
+
+    #[test]
+    fn screening_uses_absolute_value() {
+        let reference = vec![1.0, 2.0, 3.0, 4.0];
+        let comps = vec![vec![-1.0, -2.0, -3.0, -4.0], vec![1.0, -1.0, -1.0, 1.0]];
+        let (r, strong) = screen(&comps, &reference, 0.3);
+        assert_eq!(strong, vec![true, false]);
+        assert!(r[0] < 0.0);
+        assert_eq!(
+            sum_selected(&comps, &strong, 4),
+            vec![-1.0, -2.0, -3.0, -4.0]
+        );
+    }
+}

@@ -1,0 +1,196 @@
+//! Cubic interpolating splines with not-a-knot end conditions (as scipy's `CubicSpline`,
+//! which PyEMD uses for its envelopes). Written here: a tridiagonal solve is a few lines and
+//! the spline crates either allocate per evaluation or lack not-a-knot ends.
+
+use super::error::Error;
+
+/// A C² piecewise cubic through (x_i, y_i), stored as values and slopes at the knots
+/// (Hermite form).
+#[derive(Clone, Debug)]
+pub struct CubicSpline {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    slopes: Vec<f64>,
+}
+
+impl CubicSpline {
+    /// Interpolating cubic spline with not-a-knot ends (third derivative continuous at the
+    /// second and second-to-last knots); a parabola through 3 points; a line through 2.
+    ///
+    /// Formula: slopes s_i from the tridiagonal system
+    /// Δx_i s_{i-1} + 2(Δx_{i-1} + Δx_i) s_i + Δx_{i-1} s_{i+1} = 3(Δx_i m_{i-1} + Δx_{i-1} m_i)
+    /// (m_i the secant slopes) with the not-a-knot rows of de Boor, A Practical Guide to
+    /// Splines, ch. IV. Units: those of x and y. Errors: fewer than 2 knots, knots not
+    /// strictly increasing, non-finite values.
+    pub fn not_a_knot(x: &[f64], y: &[f64]) -> Result<Self, Error> {
+        let n = x.len();
+        if n < 2 || y.len() != n {
+            return Err(Error::TooShort {
+                method: "cubic spline",
+                got: n.min(y.len()),
+                min: 2,
+            });
+        }
+        if x.windows(2)
+            .any(|w| w[1].partial_cmp(&w[0]) != Some(std::cmp::Ordering::Greater))
+            || x.iter().chain(y).any(|v| !v.is_finite())
+        {
+            return Err(Error::BadParam {
+                name: "knots",
+                reason: "spline knots must be finite and strictly increasing".into(),
+            });
+        }
+        let dx: Vec<f64> = x.windows(2).map(|w| w[1] - w[0]).collect();
+        let m: Vec<f64> = (0..n - 1).map(|i| (y[i + 1] - y[i]) / dx[i]).collect();
+        let slopes = if n == 2 {
+            vec![m[0], m[0]]
+        } else if n == 3 {
+            // The parabola through three points.
+            let c = (m[1] - m[0]) / (x[2] - x[0]);
+            let s0 = m[0] - c * dx[0];
+            let s1 = m[0] + c * dx[0];
+            let s2 = m[1] + c * dx[1];
+            vec![s0, s1, s2]
+        } else {
+            let mut lower = vec![0.0; n];
+            let mut diag = vec![0.0; n];
+            let mut upper = vec![0.0; n];
+            let mut rhs = vec![0.0; n];
+            let d0 = x[2] - x[0];
+            diag[0] = dx[1];
+            upper[0] = d0;
+            rhs[0] = ((dx[0] + 2.0 * d0) * dx[1] * m[0] + dx[0] * dx[0] * m[1]) / d0;
+            for i in 1..n - 1 {
+                lower[i] = dx[i];
+                diag[i] = 2.0 * (dx[i - 1] + dx[i]);
+                upper[i] = dx[i - 1];
+                rhs[i] = 3.0 * (dx[i] * m[i - 1] + dx[i - 1] * m[i]);
+            }
+            let dn = x[n - 1] - x[n - 3];
+            lower[n - 1] = dn;
+            diag[n - 1] = dx[n - 3];
+            rhs[n - 1] = (dx[n - 2] * dx[n - 2] * m[n - 3]
+                + (2.0 * dn + dx[n - 2]) * dx[n - 3] * m[n - 2])
+                / dn;
+            thomas(&lower, &mut diag, &upper, &mut rhs);
+            rhs
+        };
+        Ok(Self {
+            x: x.to_vec(),
+            y: y.to_vec(),
+            slopes,
+        })
+    }
+
+    fn segment(&self, t: f64) -> usize {
+        let n = self.x.len();
+        match self.x.partition_point(|&v| v <= t) {
+            0 => 0,
+            i if i >= n => n - 2,
+            i => i - 1,
+        }
+    }
+
+    /// Value at `t` (extrapolates with the end cubic outside the knots).
+    pub fn eval(&self, t: f64) -> f64 {
+        self.eval_with_derivative(t).0
+    }
+
+    /// Value and first derivative at `t`.
+    pub fn eval_with_derivative(&self, t: f64) -> (f64, f64) {
+        let i = self.segment(t);
+        let h = self.x[i + 1] - self.x[i];
+        let s = (t - self.x[i]) / h;
+        let (y0, y1) = (self.y[i], self.y[i + 1]);
+        let (d0, d1) = (self.slopes[i] * h, self.slopes[i + 1] * h);
+        let s2 = s * s;
+        let s3 = s2 * s;
+        let v = (2.0 * s3 - 3.0 * s2 + 1.0) * y0
+            + (s3 - 2.0 * s2 + s) * d0
+            + (-2.0 * s3 + 3.0 * s2) * y1
+            + (s3 - s2) * d1;
+        let dv = ((6.0 * s2 - 6.0 * s) * y0
+            + (3.0 * s2 - 4.0 * s + 1.0) * d0
+            + (-6.0 * s2 + 6.0 * s) * y1
+            + (3.0 * s2 - 2.0 * s) * d1)
+            / h;
+        (v, dv)
+    }
+
+    /// Values at the integer sample positions 0..n (one pass, no search per sample).
+    pub fn eval_samples(&self, n: usize) -> Vec<f64> {
+        let mut out = Vec::with_capacity(n);
+        let mut i = self.segment(0.0);
+        for k in 0..n {
+            let t = k as f64;
+            while i + 2 < self.x.len() && t >= self.x[i + 1] {
+                i += 1;
+            }
+            let h = self.x[i + 1] - self.x[i];
+            let s = (t - self.x[i]) / h;
+            let (y0, y1) = (self.y[i], self.y[i + 1]);
+            let (d0, d1) = (self.slopes[i] * h, self.slopes[i + 1] * h);
+            let s2 = s * s;
+            let s3 = s2 * s;
+            out.push(
+                (2.0 * s3 - 3.0 * s2 + 1.0) * y0
+                    + (s3 - 2.0 * s2 + s) * d0
+                    + (-2.0 * s3 + 3.0 * s2) * y1
+                    + (s3 - s2) * d1,
+            );
+        }
+        out
+    }
+}
+
+/// Solves a tridiagonal system in place (Thomas algorithm); `rhs` becomes the solution.
+/// `lower[0]` and `upper[n-1]` are unused.
+fn thomas(lower: &[f64], diag: &mut [f64], upper: &[f64], rhs: &mut [f64]) {
+    let n = diag.len();
+    for i in 1..n {
+        let w = lower[i] / diag[i - 1];
+        diag[i] -= w * upper[i - 1];
+        rhs[i] -= w * rhs[i - 1];
+    }
+    rhs[n - 1] /= diag[n - 1];
+    for i in (0..n - 1).rev() {
+        rhs[i] = (rhs[i] - upper[i] * rhs[i + 1]) / diag[i];
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn reproduces_cubics_exactly() {
+        // Not-a-knot splines reproduce any cubic polynomial.
+        let f = |t: f64| 0.5 * t * t * t - 2.0 * t * t + t - 3.0;
+        let x = [0.0, 0.7, 1.9, 2.5, 4.0, 5.5];
+        let y: Vec<f64> = x.iter().map(|&t| f(t)).collect();
+        let s = CubicSpline::not_a_knot(&x, &y).unwrap();
+        for k in 0..50 {
+            let t = -0.5 + 0.13 * k as f64;
+            assert!((s.eval(t) - f(t)).abs() < 1e-9, "t={t}");
+        }
+        let v = s.eval_samples(6);
+        for (k, val) in v.iter().enumerate() {
+            assert!((val - f(k as f64)).abs() < 1e-9);
+        }
+    }
+
+    #[test]
+    fn three_points_is_a_parabola_two_a_line() {
+        let s = CubicSpline::not_a_knot(&[0.0, 1.0, 3.0], &[1.0, 2.0, 10.0]).unwrap();
+        let f = |t: f64| t * t + 1.0;
+        assert!((s.eval(2.0) - f(2.0)).abs() < 1e-12);
+        let l = CubicSpline::not_a_knot(&[0.0, 2.0], &[1.0, 5.0]).unwrap();
+        assert!((l.eval(1.0) - 3.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn rejects_unsorted_knots() {
+        assert!(CubicSpline::not_a_knot(&[0.0, 0.0, 1.0], &[1.0, 2.0, 3.0]).is_err());
+        assert!(CubicSpline::not_a_knot(&[0.0], &[1.0]).is_err());
+    }
+}

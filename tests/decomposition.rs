@@ -1,0 +1,300 @@
+//! HTTP end to end: decomposition (stateless and of a stored measurement) and compensation
+//! (JSON, CSV, resampled reconstruction, CL points), on SQLite and PostgreSQL.
+
+#[macro_use]
+mod helpers;
+use helpers::*;
+use serde_json::{Value, json};
+
+/// A smooth field plus deterministic pseudo-noise on an nu × nv grid, mm.
+fn field(nu: usize, nv: usize) -> Vec<f64> {
+    (0..nu * nv)
+        .map(|k| {
+            let (u, v) = (
+                (k % nu) as f64 / (nu - 1) as f64,
+                (k / nu) as f64 / (nv - 1) as f64,
+            );
+            let noise = (((k * 7919) % 1000) as f64 / 1000.0 - 0.5) * 0.01;
+            0.03 + 0.01 * (3.0 * u).sin() * (2.0 * v).cos() + 0.005 * u + noise
+        })
+        .collect()
+}
+
+fn floats(v: &Value) -> Vec<f64> {
+    v.as_array()
+        .expect("array")
+        .iter()
+        .map(|x| x.as_f64().expect("number"))
+        .collect()
+}
+
+async fn stateless_decompose(app: TestApp) {
+    let signal: Vec<f64> = (0..300)
+        .map(|k| 0.02 * (k as f64 / 20.0).sin() + (((k * 31) % 17) as f64 - 8.0) * 5e-4)
+        .collect();
+    for method in ["coarse_to_fine", "vmd", "emd", "wavelet"] {
+        let r = app
+            .post_json(
+                "/v1/decompose",
+                &json!({"signal": signal, "method": method}),
+            )
+            .await;
+        assert_eq!(r.status(), 200, "{method}");
+        let b: Value = r.json().await.unwrap();
+        assert_eq!(b["method"], method);
+        let (s, rnd) = (floats(&b["systematic"]), floats(&b["random"]));
+        assert_eq!(s.len(), signal.len());
+        for i in 0..signal.len() {
+            assert!(
+                (s[i] + rnd[i] - signal[i]).abs() < 1e-9,
+                "{method} sample {i}"
+            );
+        }
+        assert!(b["components"].is_object());
+    }
+    // Default method, grid reading and parameters.
+    let f = field(12, 10);
+    let r = app
+        .post_json(
+            "/v1/decompose",
+            &json!({"signal": f, "params": {"nu": 12, "nv": 10, "vmd": {"K": 4}, "full_components": true}}),
+        )
+        .await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    assert_eq!(b["method"], "coarse_to_fine");
+    assert_eq!(b["components"]["order"], "2d");
+    assert_eq!(b["components"]["stages"]["k"], 4);
+    assert_eq!(floats(&b["components"]["arrays"]["x4"]).len(), 120);
+}
+on_both_backends!(stateless_decompose);
+
+async fn bad_decompose_input(app: TestApp) {
+    let p = "/v1/decompose";
+    assert_problem(
+        app.post_json(p, &json!({"signal": []})).await,
+        400,
+        &["signal"],
+    )
+    .await;
+    assert_problem(
+        app.post_json(p, &json!({"signal": [0.1; 5]})).await,
+        422,
+        &["16"],
+    )
+    .await;
+    let sig = vec![0.1; 40];
+    assert_problem(
+        app.post_json(p, &json!({"signal": sig, "method": "fft"}))
+            .await,
+        400,
+        &["fft"],
+    )
+    .await;
+    assert_problem(
+        app.post_json(p, &json!({"signal": sig, "params": {"vmd": {"alpha": -3}}}))
+            .await,
+        400,
+        &["alpha"],
+    )
+    .await;
+    assert_problem(
+        app.post_json(p, &json!({"signal": sig, "params": {"alhpa": 1}}))
+            .await,
+        400,
+        &["alhpa"],
+    )
+    .await;
+    assert_problem(
+        app.post_json(p, &json!({"signal": sig, "params": {"nu": 7, "nv": 7}}))
+            .await,
+        400,
+        &["nu*nv"],
+    )
+    .await;
+    assert_problem(
+        app.post_json(p, &json!({"signal": sig, "params": {"wavelet": "coif5"}}))
+            .await,
+        400,
+        &["coif5"],
+    )
+    .await;
+    assert_problem(
+        app.post_raw(p, "application/json", "{\"signal\": [1, NaN]}")
+            .await,
+        400,
+        &[],
+    )
+    .await;
+}
+on_both_backends!(bad_decompose_input);
+
+async fn measurement_decomposition_and_compensation(app: TestApp) {
+    let (nu, nv) = (15, 11);
+    seed_machine_and_surface(&app, "m1", "s1", nu, nv).await;
+    let devs = field(nu, nv);
+    let base = "/v1/machines/m1/surfaces/s1";
+    let r = app
+        .post_json(
+            &format!("{base}/measurements"),
+            &json!({"deviations": devs, "id": "probe-1"}),
+        )
+        .await;
+    assert_eq!(r.status(), 201);
+    // No stored decomposition yet.
+    assert_problem(
+        app.get(&format!("{base}/measurements/probe-1/decomposition"))
+            .await,
+        404,
+        &["POST"],
+    )
+    .await;
+    // Compensation before any decomposition uses a fresh coarse-to-fine one.
+    let r = app
+        .get(&format!("{base}/compensation?measurement=probe-1"))
+        .await;
+    assert_eq!(r.status(), 200);
+    let fresh: Value = r.json().await.unwrap();
+    // Store a VMD decomposition: compensation follows the one stored last.
+    let r = app
+        .post_raw(
+            &format!("{base}/measurements/probe-1/decomposition"),
+            "application/json",
+            json!({"method": "vmd"}).to_string(),
+        )
+        .await;
+    assert_eq!(r.status(), 200);
+    let d: Value = r.json().await.unwrap();
+    let (s, rnd) = (floats(&d["systematic"]), floats(&d["random"]));
+    for i in 0..devs.len() {
+        assert!((s[i] + rnd[i] - devs[i]).abs() < 1e-9);
+    }
+    let stored: Value = app
+        .get(&format!("{base}/measurements/probe-1/decomposition"))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(stored["method"], "vmd");
+    let r = app
+        .get(&format!("{base}/compensation?measurement=probe-1"))
+        .await;
+    assert_eq!(r.status(), 200);
+    let c: Value = r.json().await.unwrap();
+    let offs = floats(&c["offsets"]);
+    assert_eq!(offs, s);
+    assert_ne!(floats(&fresh["offsets"]), offs);
+    // points = nominal - offsets * normals (flat surface, normals +z).
+    for (k, p) in c["points"].as_array().unwrap().iter().enumerate() {
+        let p = floats(p);
+        assert!((p[0] - (k % nu) as f64).abs() < 1e-12);
+        assert!((p[2] - (0.0 - offs[k])).abs() < 1e-12);
+    }
+    // Default (coarse-to-fine) decomposition with an empty body.
+    let r = app
+        .post_raw(
+            &format!("{base}/measurements/probe-1/decomposition"),
+            "application/json",
+            "",
+        )
+        .await;
+    assert_eq!(r.status(), 200);
+    let d: Value = r.json().await.unwrap();
+    assert_eq!(d["method"], "coarse_to_fine");
+    assert_eq!(d["components"]["grid"], json!([nu, nv]));
+    // CSV with the contract header.
+    let r = app
+        .client
+        .get(app.url(&format!("{base}/compensation?measurement=probe-1")))
+        .header("accept", "text/csv")
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    let text = r.text().await.unwrap();
+    let mut lines = text.lines();
+    assert_eq!(lines.next(), Some("x,y,z,i,j,k,offset"));
+    let rows: Vec<Vec<f64>> = lines
+        .map(|l| l.split(',').map(|c| c.parse().unwrap()).collect())
+        .collect();
+    assert_eq!(rows.len(), nu * nv);
+    let sys = floats(&d["systematic"]);
+    assert!((rows[7][6] - sys[7]).abs() < 1e-12 && (rows[7][2] + sys[7]).abs() < 1e-12);
+    // Reconstructed surface at another density, with CL points (tool radius 3 from the surface).
+    let r = app
+        .get(&format!(
+            "{base}/compensation?measurement=probe-1&nu=29&nv=21&cl=true"
+        ))
+        .await;
+    assert_eq!(r.status(), 200);
+    let g: Value = r.json().await.unwrap();
+    assert_eq!(g["points"].as_array().unwrap().len(), 29 * 21);
+    let (p0, cl0) = (floats(&g["points"][0]), floats(&g["cl"][0]));
+    assert!((cl0[2] - p0[2] - 3.0).abs() < 1e-9);
+    assert!((floats(&g["offsets"])[0] - sys[0]).abs() < 1e-12);
+    // Bad queries.
+    assert_problem(
+        app.get(&format!("{base}/compensation")).await,
+        400,
+        &["measurement"],
+    )
+    .await;
+    assert_problem(
+        app.get(&format!("{base}/compensation?measurement=nope"))
+            .await,
+        404,
+        &["nope"],
+    )
+    .await;
+    assert_problem(
+        app.get(&format!(
+            "{base}/compensation?measurement=probe-1&nu=1&nv=5"
+        ))
+        .await,
+        400,
+        &["nu"],
+    )
+    .await;
+    assert_problem(
+        app.get(&format!("{base}/compensation?measurement=probe-1&nu=5"))
+            .await,
+        400,
+        &["nv"],
+    )
+    .await;
+    assert_problem(
+        app.get(&format!("{base}/compensation?measurement=probe-1&foo=1"))
+            .await,
+        400,
+        &["foo"],
+    )
+    .await;
+    assert_problem(
+        app.post_json(
+            &format!("{base}/measurements/nope/decomposition"),
+            &json!({}),
+        )
+        .await,
+        404,
+        &["nope"],
+    )
+    .await;
+    assert_problem(
+        app.post_json(
+            &format!("{base}/measurements/probe-1/decomposition"),
+            &json!({"params": {"nu": 3}}),
+        )
+        .await,
+        400,
+        &["nu"],
+    )
+    .await;
+    assert_problem(
+        app.get("/v1/machines/ghost/surfaces/s1/compensation?measurement=probe-1")
+            .await,
+        404,
+        &["ghost"],
+    )
+    .await;
+}
+on_both_backends!(measurement_decomposition_and_compensation);

@@ -1,0 +1,311 @@
+//! HTTP end to end: POST /v1/machines/{machine}/gap-diagnosis (CONTRACT "Sim-to-real gap
+//! diagnosis", motion and part), and the `truecut gap` CLI.
+
+#[macro_use]
+mod helpers;
+use helpers::*;
+
+use rand::SeedableRng;
+use serde_json::{Value, json};
+use truecut::gap::programs::{Program, generate};
+use truecut::gap::truth::{Truth, measure};
+use truecut::motion::ServoAxis;
+
+fn servo() -> ServoAxis {
+    ServoAxis {
+        kv: 30.0,
+        kff: 0.5,
+        kp_v: Some(400.0),
+        ti_v: Some(0.01),
+        tc: Some(0.0006),
+    }
+}
+
+fn machine() -> Value {
+    let ax = serde_json::to_value(servo()).unwrap();
+    json!({"kinematics": "xyz", "axes": {"X": ax, "Y": ax, "Z": ax}})
+}
+
+fn rows(cols: &[Vec<f64>]) -> Vec<Vec<f64>> {
+    (0..cols[0].len())
+        .map(|i| cols.iter().map(|c| c[i]).collect())
+        .collect()
+}
+
+/// A circle program (command rows) and the truth plant's measured rows, 2 axes, 1 ms.
+fn block(truth: &Truth, flip: bool, seed: u64) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let cmd = generate(Program::Circle, 2, 0.001, flip, &mut rng);
+    let meas = measure(&[servo(), servo()], truth, &cmd, 0.001, 0.0003, &mut rng);
+    (rows(&cmd), rows(&meas))
+}
+
+async fn motion_backlash_found_located_and_validated(app: TestApp) {
+    let r = app.put_json("/v1/machines/m1", &machine()).await;
+    assert!(r.status().is_success());
+    let truth = Truth::Backlash(vec![0.012, 0.008], true);
+    let (c, m) = block(&truth, false, 1);
+    let (vc, vm) = block(&truth, true, 2);
+    let body = json!({"domain": "motion", "period_s": 0.001, "commanded": c, "measured": m,
+        "validation": {"commanded": vc, "measured": vm}});
+    let r = app.post_json("/v1/machines/m1/gap-diagnosis", &body).await;
+    assert_eq!(r.status(), 200);
+    let a: Value = r.json().await.unwrap();
+    assert_eq!(a["verdict"], "backlash", "{}", a["effects"]);
+    let before = a["gap_before"]["rms"].as_f64().unwrap();
+    let after = a["gap_after"]["rms"].as_f64().unwrap();
+    assert!(
+        before > 0.003 && after < 0.2 * before,
+        "{before} -> {after}"
+    );
+    let effects = a["effects"].as_array().unwrap();
+    assert_eq!(effects.len(), 7);
+    assert_eq!(effects[0]["effect"], "backlash");
+    let x_mm = effects[0]["params"]["x_mm"].as_f64().unwrap();
+    assert!((x_mm - 0.012).abs() < 0.001, "{}", effects[0]);
+    let spans = a["where"].as_array().unwrap();
+    let share: f64 = spans.iter().map(|s| s["share"].as_f64().unwrap()).sum();
+    assert!(share > 0.9 && share <= 1.0 + 1e-9);
+    assert!(
+        spans
+            .iter()
+            .any(|s| s["label"].as_str().unwrap().contains("reversal"))
+    );
+    let v = &a["validation"];
+    assert_eq!(v["predicted_before"].as_array().unwrap().len(), vc.len());
+    assert_eq!(v["predicted_after"][0].as_array().unwrap().len(), 2);
+    let (rb, ra) = (
+        v["rms_before"].as_f64().unwrap(),
+        v["rms_after"].as_f64().unwrap(),
+    );
+    assert!(ra < 0.3 * rb, "validation {rb} -> {ra}");
+    // the caller's own check of the shrink agrees with rms_after
+    let pa = v["predicted_after"].as_array().unwrap();
+    let mut sum = 0.0;
+    for (row, meas) in pa.iter().zip(&vm) {
+        let dx = meas[0] - row[0].as_f64().unwrap();
+        let dy = meas[1] - row[1].as_f64().unwrap();
+        sum += dx * dx + dy * dy;
+    }
+    assert!(((sum / vm.len() as f64).sqrt() - ra).abs() < 1e-9);
+}
+on_both_backends!(motion_backlash_found_located_and_validated);
+
+async fn motion_none_when_the_stored_model_is_right(app: TestApp) {
+    app.put_json("/v1/machines/m1", &machine()).await;
+    let (c, m) = block(&Truth::None, true, 3);
+    let r = app
+        .post_json(
+            "/v1/machines/m1/gap-diagnosis",
+            &json!({"domain": "motion", "period_s": 0.001, "commanded": c, "measured": m}),
+        )
+        .await;
+    assert_eq!(r.status(), 200);
+    let a: Value = r.json().await.unwrap();
+    assert_eq!(a["verdict"], "none", "{}", a["effects"]);
+    assert_eq!(a["gap_after"], a["gap_before"]);
+    assert!(a.get("validation").is_none());
+}
+on_both_backends!(motion_none_when_the_stored_model_is_right);
+
+async fn motion_bad_input_is_4xx_with_the_field_named(app: TestApp) {
+    let url = "/v1/machines/m1/gap-diagnosis";
+    let ok_rows = vec![vec![0.0, 0.0]; 100];
+    let r = app
+        .post_json(url, &json!({"domain": "motion", "period_s": 0.001, "commanded": ok_rows, "measured": ok_rows}))
+        .await;
+    assert_problem(r, 404, &["machine 'm1' does not exist"]).await;
+    app.put_json("/v1/machines/m1", &machine()).await;
+    let r = app.post_json(url, &json!({"domain": "sound"})).await;
+    assert_problem(r, 400, &["domain"]).await;
+    let r = app
+        .post_json(
+            url,
+            &json!({"domain": "motion", "commanded": ok_rows, "measured": ok_rows}),
+        )
+        .await;
+    assert_problem(r, 400, &["period_s"]).await;
+    let mut bad = ok_rows.clone();
+    bad[7] = vec![1.0, 2.0, 3.0, 4.0];
+    let r = app
+        .post_json(
+            url,
+            &json!({"domain": "motion", "period_s": 0.001, "commanded": ok_rows, "measured": bad}),
+        )
+        .await;
+    assert_problem(r, 400, &["measured[7]"]).await;
+    let r = app
+        .post_json(url, &json!({"domain": "motion", "period_s": 0.001, "commanded": ok_rows, "measured": ok_rows[..50]}))
+        .await;
+    assert_problem(r, 400, &["measured has 50 rows"]).await;
+    let r = app
+        .post_json(url, &json!({"domain": "motion", "period_s": 0.001, "commanded": ok_rows[..5], "measured": ok_rows[..5]}))
+        .await;
+    assert_problem(r, 400, &["at least"]).await;
+    let r = app
+        .post_json(url, &json!({"domain": "motion", "period_s": -1.0, "commanded": ok_rows, "measured": ok_rows}))
+        .await;
+    assert_problem(r, 400, &["period_s"]).await;
+    let r = app
+        .post_json(url, &json!({"domain": "motion", "period_s": 0.001, "commanded": ok_rows, "measured": ok_rows, "surface": "s"}))
+        .await;
+    assert_problem(r, 400, &["surface", "part"]).await;
+    let r = app
+        .post_json(url, &json!({"domain": "motion", "period_s": 0.001, "commanded": ok_rows, "measured": ok_rows,
+            "validation": {"commanded": ok_rows}}))
+        .await;
+    assert_problem(r, 400, &["validation"]).await;
+    // a machine without servo models cannot be simulated
+    app.put_json("/v1/machines/bare", &json!({"kinematics": "xyz"}))
+        .await;
+    let r = app
+        .post_json("/v1/machines/bare/gap-diagnosis", &json!({"domain": "motion", "period_s": 0.001, "commanded": ok_rows, "measured": ok_rows}))
+        .await;
+    assert_problem(r, 422, &["bare"]).await;
+}
+on_both_backends!(motion_bad_input_is_4xx_with_the_field_named);
+
+/// A 16×12 saddle-like patch z = x²/300 − y²/500 over ±30 × ±20 mm, outward normals +z-ish.
+fn curved_surface() -> (Value, Vec<[f64; 3]>, Vec<[f64; 3]>) {
+    let (nu, nv) = (16, 12);
+    let (mut pts, mut nrm) = (Vec::new(), Vec::new());
+    for iv in 0..nv {
+        for iu in 0..nu {
+            let x = -30.0 + 60.0 * iu as f64 / (nu - 1) as f64;
+            let y = -20.0 + 40.0 * iv as f64 / (nv - 1) as f64;
+            pts.push([100.0 + x, 50.0 + y, x * x / 300.0 - y * y / 500.0]);
+            let g = [-x / 150.0, y / 250.0, 1.0];
+            let l = (g[0] * g[0] + g[1] * g[1] + g[2] * g[2]).sqrt();
+            nrm.push([g[0] / l, g[1] / l, g[2] / l]);
+        }
+    }
+    let body = json!({"nominal": {"grid": {"nu": nu, "nv": nv, "points": pts, "normals": nrm}}});
+    (body, pts, nrm)
+}
+
+fn misaligned(pts: &[[f64; 3]], nrm: &[[f64; 3]], noise_seed: u64) -> Vec<f64> {
+    use rand::RngExt;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(noise_seed);
+    let c = [
+        100.0,
+        50.0,
+        pts.iter().map(|p| p[2]).sum::<f64>() / pts.len() as f64,
+    ];
+    let (t, w) = ([0.004, -0.003, 0.006], [30e-6, -50e-6, 80e-6]);
+    pts.iter()
+        .zip(nrm)
+        .map(|(p, n)| {
+            let r = [p[0] - c[0], p[1] - c[1], p[2] - c[2]];
+            let d = [
+                t[0] + w[1] * r[2] - w[2] * r[1],
+                t[1] + w[2] * r[0] - w[0] * r[2],
+                t[2] + w[0] * r[1] - w[1] * r[0],
+            ];
+            d[0] * n[0] + d[1] * n[1] + d[2] * n[2] + rng.random_range(-0.0005..0.0005)
+        })
+        .collect()
+}
+
+async fn part_misalignment_found_with_regions_and_validation(app: TestApp) {
+    app.put_json("/v1/machines/m1", &machine()).await;
+    let (surface, pts, nrm) = curved_surface();
+    let r = app.put_json("/v1/machines/m1/surfaces/s1", &surface).await;
+    assert!(r.status().is_success(), "{}", r.status());
+    let mut ids = Vec::new();
+    for seed in [1, 2] {
+        let r = app
+            .post_json(
+                "/v1/machines/m1/surfaces/s1/measurements",
+                &json!({"deviations": misaligned(&pts, &nrm, seed)}),
+            )
+            .await;
+        assert_eq!(r.status(), 201);
+        let b: Value = r.json().await.unwrap();
+        ids.push(b["id"].as_str().unwrap().to_string());
+    }
+    let body = json!({"domain": "part", "surface": "s1", "measurement": ids[0], "validation": {"measurement": ids[1]}});
+    let r = app.post_json("/v1/machines/m1/gap-diagnosis", &body).await;
+    assert_eq!(r.status(), 200);
+    let a: Value = r.json().await.unwrap();
+    assert_eq!(a["verdict"], "setup_misalignment", "{}", a["effects"]);
+    assert_eq!(a["predicted_source"], "zero");
+    let rz = a["effects"][0]["params"]["rz_rad"].as_f64().unwrap();
+    assert!((rz - 80e-6).abs() < 10e-6, "{}", a["effects"][0]);
+    let w = &a["where"][0];
+    assert!(
+        w["u"].as_array().unwrap().len() == 2 && w["v"][1].as_u64().unwrap() < 12,
+        "{w}"
+    );
+    let v = &a["validation"];
+    assert_eq!(v["predicted_before"].as_array().unwrap().len(), 16 * 12);
+    assert!(
+        v["rms_after"].as_f64().unwrap() < 0.3 * v["rms_before"].as_f64().unwrap(),
+        "{v}"
+    );
+
+    let r = app
+        .post_json(
+            "/v1/machines/m1/gap-diagnosis",
+            &json!({"domain": "part", "surface": "s1", "measurement": "nope"}),
+        )
+        .await;
+    assert_problem(r, 404, &["measurement 'nope'"]).await;
+    let r = app
+        .post_json("/v1/machines/m1/gap-diagnosis", &json!({"domain": "part", "surface": "s1", "measurement": ids[0], "predicted": [0.0, 1.0]}))
+        .await;
+    assert_problem(r, 400, &["main.predicted", "192"]).await;
+    let r = app
+        .post_json(
+            "/v1/machines/m1/gap-diagnosis",
+            &json!({"domain": "part", "surface": "s1", "measurement": ids[0], "period_s": 0.001}),
+        )
+        .await;
+    assert_problem(r, 400, &["period_s", "motion"]).await;
+}
+on_both_backends!(part_misalignment_found_with_regions_and_validation);
+
+#[test]
+fn cli_gap_csv_and_selfcheck_run() {
+    let dir = tempfile::tempdir().unwrap();
+    let machine_path = dir.path().join("m.json");
+    std::fs::write(&machine_path, machine().to_string()).unwrap();
+    let (c, m) = block(&Truth::Scale(vec![50e-6, -30e-6]), false, 9);
+    let mut csv = String::from("t,xc,yc,xm,ym\n");
+    for (i, (c, m)) in c.iter().zip(&m).enumerate() {
+        csv += &format!("{i},{},{},{},{}\n", c[0], c[1], m[0], m[1]);
+    }
+    let csv_path = dir.path().join("trace.csv");
+    std::fs::write(&csv_path, csv).unwrap();
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_truecut"))
+        .args(["gap", "csv"])
+        .arg(&csv_path)
+        .arg("--machine")
+        .arg(&machine_path)
+        .args([
+            "--period-s",
+            "0.001",
+            "--commanded",
+            "xc,yc",
+            "--measured",
+            "xm,ym",
+        ])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{text} {}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(text.contains("verdict scale_error"), "{text}");
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_truecut"))
+        .args(["gap", "selfcheck", "--cases", "2", "--seed", "5"])
+        .output()
+        .unwrap();
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{text}");
+    assert!(
+        text.contains("truth \\ verdict") && text.contains("accuracy"),
+        "{text}"
+    );
+}
