@@ -399,6 +399,15 @@ fn http() {
         "typed serde decode + solve (no HTTP): {:>10.0} segments/s",
         1e5 / t_serde
     );
+    let mut headers = axum::http::HeaderMap::new();
+    headers.insert("content-type", "application/json".parse().unwrap());
+    let t_lean = best_of(3, || truecut::api::step_error::decode_segments(&headers, &body).unwrap().1.len());
+    println!("lean decode only (no HTTP): {:>10.0} segments/s", 1e5 / t_lean);
+    let (_, batch) = truecut::api::step_error::decode_segments(&headers, &body).unwrap();
+    let t_solve = best_of(3, || truecut::api::step_error::solve_batch(R, &batch).unwrap().len());
+    println!("solve only (all threads): {:>10.0} segments/s", 1e5 / t_solve);
+    let t_valid = best_of(3, || serde_json::from_slice::<serde::de::IgnoredAny>(&body).unwrap());
+    println!("serde_json syntax check only: {:>10.0} segments/s", 1e5 / t_valid);
     let rt = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()

@@ -78,7 +78,7 @@ async fn bad_decompose_input(app: TestApp) {
     )
     .await;
     assert_problem(
-        app.post_json(p, &json!({"signal": [0.1; 5]})).await,
+        app.post_json(p, &json!({"signal": vec![0.1; 5]})).await,
         422,
         &["16"],
     )

@@ -228,6 +228,13 @@ async fn bad_input_is_4xx(app: TestApp) {
         .post_json(&format!("{MAP}/predict"), &json!({"points": []}))
         .await;
     assert_problem(r, 400, &["points"]).await;
+    let many: Vec<[f64; 3]> = (0..100_001).map(|i| [i as f64, 0.0, 0.0]).collect();
+    let r = app
+        .post_json(&format!("{MAP}/predict"), &json!({"points": many}))
+        .await;
+    assert_problem(r, 413, &["at most 100000"]).await;
+    let b = json!({"nodes": &many[..20_001], "errors": vec![[0.0; 3]; 20_001]});
+    assert_problem(app.put_json(MAP, &b).await, 413, &["at most 20000"]).await;
     let r = app.get(&format!("{MAP}/table?points=1,2,2")).await;
     assert_problem(r, 400, &["at least 2 points"]).await;
     let r = app.get(&format!("{MAP}/table?colour=red")).await;

@@ -113,7 +113,7 @@ fn check_tool_radius(r: f64) -> ApiResult<()> {
 }
 
 /// Decodes `{"tool_radius"?: mm, "segments": [...]}` without building a `Vec` per segment.
-fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f64>, SegmentBatch)> {
+pub fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f64>, SegmentBatch)> {
     if !is_json(headers) {
         return Err(ApiError::unsupported_media_type(
             "send the body with Content-Type: application/json",
@@ -170,7 +170,7 @@ fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f64>, 
 }
 
 /// Exact step errors of a batch, split over the machine's cores.
-fn solve_batch(r: f64, batch: &SegmentBatch) -> Result<Vec<StepError>, geometry::Error> {
+pub fn solve_batch(r: f64, batch: &SegmentBatch) -> Result<Vec<StepError>, geometry::Error> {
     let n = batch.len();
     let threads = std::thread::available_parallelism()
         .map(|t| t.get())

@@ -294,6 +294,25 @@ mod tests {
         assert!(parse_json_upload(br#"{"points":[[1,2]]}"#).is_err());
     }
 
+    proptest::proptest! {
+        /// Any finite values written in any accepted layout parse back bit-exactly.
+        #[test]
+        fn csv_round_trip(
+            values in proptest::collection::vec(-1e3f64..1e3, 1..40),
+            semicolon in proptest::bool::ANY,
+            with_id in proptest::bool::ANY,
+        ) {
+            let sep = if semicolon { ";" } else { "," };
+            let mut csv = if with_id { format!("Point{sep}x{sep}y{sep}z\n") } else { format!("x{sep}y{sep}z\n") };
+            for (k, v) in values.iter().enumerate() {
+                let id = if with_id { format!("P{k}{sep}") } else { String::new() };
+                csv.push_str(&format!("{id}{v}{sep}{}{sep}{}\r\n", -v, v * 0.5));
+            }
+            let expected: Vec<[f64; 3]> = values.iter().map(|v| [*v, -v, v * 0.5]).collect();
+            proptest::prop_assert_eq!(parse_csv_upload(csv.as_bytes()).unwrap(), ProbeData::Points(expected));
+        }
+    }
+
     #[test]
     fn deviation_sign_follows_outward_normal() {
         let d =

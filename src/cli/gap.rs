@@ -40,6 +40,9 @@ pub enum GapCommand {
         /// Print one line per case as well.
         #[arg(long)]
         verbose: bool,
+        /// Part-domain cases (random curved surfaces; none, misalignment, thermal, pretravel).
+        #[arg(long, default_value_t = 80)]
+        part_cases: usize,
     },
     /// Diagnose a motion request body (the JSON of POST .../gap-diagnosis) against a machine
     /// definition file (the JSON of PUT /v1/machines/{id}); prints the answer JSON.
@@ -85,6 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             seed,
             threads,
             verbose,
+            part_cases,
         } => {
             let opts = MotionOptions {
                 threads: threads.max(1),
@@ -105,6 +109,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 }
             }
             print!("{}", report.render());
+            if part_cases > 0 {
+                print!(
+                    "{}",
+                    crate::gap::part_selfcheck::run_part(part_cases, seed)?.render()
+                );
+            }
             println!(
                 "elapsed {:.1} s on {threads} thread(s)",
                 started.elapsed().as_secs_f64()

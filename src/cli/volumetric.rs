@@ -72,7 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         }
         let m = SyntheticMachine::new(args.seed, ShapeFamily::TrendAndWaviness);
         let d = m.measure_grid(g, args.seed + 1000);
-        let mut out = std::io::stdout().lock();
+        let mut out = std::io::BufWriter::new(std::io::stdout().lock());
         writeln!(out, "x,y,z,dx,dy,dz")?;
         for (p, e) in d.nodes.iter().zip(&d.errors) {
             writeln!(
@@ -117,7 +117,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 .map(|k| volumetric::component_curves(k, 21)),
         )?;
     }
-    println!("{}", serde_json::to_string_pretty(&summary)?);
     if let Some(path) = &args.table {
         let p: Vec<usize> = parse_list("--table-points", &args.table_points, 3)?;
         let p = if p.len() == 1 {
@@ -136,5 +135,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .with_context(|| format!("writing {}", path.display()))?;
         eprintln!("map written to {}", path.display());
     }
-    Ok(())
+    // the summary last, so that files are written even when stdout is closed early (| head)
+    let text = serde_json::to_string_pretty(&summary)?;
+    match writeln!(std::io::stdout().lock(), "{text}") {
+        Err(e) if e.kind() != std::io::ErrorKind::BrokenPipe => Err(e.into()),
+        _ => Ok(()),
+    }
 }

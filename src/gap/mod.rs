@@ -6,6 +6,7 @@ pub mod events;
 pub mod fit;
 pub mod motion;
 pub mod part;
+pub mod part_selfcheck;
 pub mod plant;
 pub mod programs;
 pub mod selfcheck;

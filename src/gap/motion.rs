@@ -119,8 +119,8 @@ pub fn gap_stats(measured: &[Vec<f64>], simulated: &[Vec<f64>]) -> GapStats {
 
 /// Noise standard deviation of a residual (mm): `1.4826·median|Δ²r| / √6` pooled over axes —
 /// white noise of variance σ² has second differences of variance 6σ², while the smooth part of
-/// the gap barely contributes; when more than half the second differences are exactly zero
-/// (quantized data) the RMS of the second differences is used instead. Bad cases: gaps with many
+/// the gap barely contributes; never below half the RMS-based estimate `rms(Δ²r)/√6`
+/// (quantized data make the median of |Δ²r| nearly 0). Bad cases: gaps with many
 /// steps per sample inflate it.
 pub fn noise_sigma(residual: &[Vec<f64>]) -> f64 {
     let mut d2: Vec<f64> = residual
@@ -134,9 +134,10 @@ pub fn noise_sigma(residual: &[Vec<f64>]) -> f64 {
     let mid = d2.len() / 2;
     let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
     let robust = 1.4826 * *m / 6f64.sqrt();
-    // quantized measurements (most second differences exactly 0) make the median 0: fall back
-    // to the RMS of the second differences rather than claim a noiseless signal
-    if robust > 0.0 { robust } else { rms }
+    // quantized measurements (most second differences exactly or nearly 0) make the median
+    // useless: never report less than half the RMS-based estimate (steps and spikes of a real
+    // gap inflate the RMS one, hence only half of it)
+    robust.max(0.5 * rms)
 }
 
 fn check_block(

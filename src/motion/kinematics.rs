@@ -205,6 +205,6 @@ mod tests {
     }
 
     fn gcode_dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-        crate::motion::gcode::dist3(a, b)
+        crate::motion::program::dist3(a, b)
     }
 }

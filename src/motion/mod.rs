@@ -10,6 +10,7 @@ pub mod machine;
 pub mod physical;
 pub mod predict;
 pub mod profile;
+pub mod program;
 pub mod servo;
 
 pub use contour::{ContourReport, contour_error};

@@ -203,7 +203,7 @@ mod tests {
         let dd: f64 = d.iter().map(|v| v * v).sum();
         let f = (r.iter().zip(&d).map(|(x, y)| x * y).sum::<f64>() / dd).clamp(0.0, 1.0);
         let q: [f64; 3] = std::array::from_fn(|k| a[k] + f * d[k]);
-        crate::motion::gcode::dist3(p, &q)
+        crate::motion::program::dist3(p, &q)
     }
 
     /// Worst distance of the tool tip (forward kinematics of `cols`) to the workpiece line
@@ -290,5 +290,26 @@ mod tests {
         assert!(o > 0.01 && lag.report.max > 1e-3, "{o} {}", lag.report.max);
         let ideal = predict_contour_error(&five_axis(1.0, 30.0), prog, 1e-3, 1_000_000).unwrap();
         assert!(ideal.report.orientation_max_deg.unwrap() < 1e-6);
+    }
+
+    proptest::proptest! {
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(120))]
+        /// The whole pipeline never panics on G-code-like input: an answer with finite
+        /// numbers of equal lengths, or a typed error.
+        #[test]
+        fn pipeline_never_panics(
+            s in "(G[0-4] |G9[0134] |G1[789] |G43.4 |G49 |TRAORI |TRAFOOF )?([XYZACP][-]?[0-9]{1,2}(\\.[0-9]{1,3})? ){1,4}([IJKR][-]?[0-9]{1,2} ){0,2}(F[1-9][0-9]{2,4})?\n{1,6}"
+        ) {
+            let m = five_axis(0.5, 30.0);
+            let r = predict_contour_error(&m, &format!("G1 F2000\n{s}"), 1e-3, 20_000);
+            eprintln!("DBG {}", r.is_ok());
+            if let Ok(p) = r {
+                let n = p.commanded.t.len();
+                proptest::prop_assert_eq!(p.report.contour_error.len(), n);
+                proptest::prop_assert!(p.actual.iter().all(|c| c.len() == n));
+                proptest::prop_assert!(p.report.contour_error.iter().all(|v| v.is_finite()));
+                proptest::prop_assert!(p.report.max.is_finite() && p.report.rms.is_finite());
+            }
+        }
     }
 }

@@ -170,7 +170,8 @@ fn envelopes(h: &[f64], k: usize) -> Option<(Vec<f64>, Vec<f64>, usize)> {
             .ok()
             .map(|s| s.eval_samples(n))
     };
-    let wrong = upper.iter().filter(|p| p.1 <= 0.0).count() + lower.iter().filter(|p| p.1 >= 0.0).count();
+    let wrong =
+        upper.iter().filter(|p| p.1 <= 0.0).count() + lower.iter().filter(|p| p.1 >= 0.0).count();
     Some((build(&upper)?, build(&lower)?, wrong))
 }
 

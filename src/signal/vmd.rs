@@ -564,7 +564,9 @@ pub fn mean_instantaneous_frequency(mode: &[f64]) -> f64 {
 /// K − 1 is returned; `k_max` if it never bends.
 ///
 /// Reference: paper 002 section 3.1 (K = 7 found this way for its 2,025-point signals) and
-/// Chang et al. 2021. Known bad cases: costs up to k_max − 1 VMD runs.
+/// Chang et al. 2021. Known bad cases: costs up to k_max − 1 VMD runs; on clean signals of
+/// a few pure tones the highest mode's IF can tie between K and K + 1 and the search stops
+/// one or more modes early (the screening then still keeps every tone's mode).
 pub fn choose_k(x: &[f64], params: &VmdParams, k_max: usize) -> Result<usize, Error> {
     let mut prev_top = -1.0;
     for k in 2..=k_max.max(2) {

@@ -53,10 +53,11 @@ pub(crate) fn penalty_eigenvalues(n: usize, d: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Minimises a GCV score over log10 λ ∈ [lo, hi]: a 0.1-step scan, then golden section.
+/// Minimises a GCV score over log10 λ ∈ [lo, hi]: a 0.25-step scan, then golden section
+/// (30 steps, to 1e-6 in log10 λ) around the best scan point.
 pub(crate) fn minimise_log_lambda(lo: f64, hi: f64, score: impl Fn(f64) -> f64) -> f64 {
     let mut best = (f64::INFINITY, lo);
-    let steps = ((hi - lo) / 0.1).ceil() as usize;
+    let steps = ((hi - lo) / 0.25).ceil() as usize;
     for i in 0..=steps {
         let p = lo + (hi - lo) * i as f64 / steps as f64;
         let s = score(p);
@@ -64,11 +65,11 @@ pub(crate) fn minimise_log_lambda(lo: f64, hi: f64, score: impl Fn(f64) -> f64) 
             best = (s, p);
         }
     }
-    let (mut a, mut b) = ((best.1 - 0.1).max(lo), (best.1 + 0.1).min(hi));
+    let (mut a, mut b) = ((best.1 - 0.25).max(lo), (best.1 + 0.25).min(hi));
     let g = 0.5 * (5f64.sqrt() - 1.0);
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
     let (mut fc, mut fd) = (score(c), score(d));
-    for _ in 0..40 {
+    for _ in 0..30 {
         if fc < fd {
             b = d;
             d = c;
