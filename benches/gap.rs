@@ -80,6 +80,48 @@ fn main() {
         "diagnosis of 10,000 samples x 2 axes: 2 threads {t2:.3} s, 1 thread {t1:.3} s, speed-up x{:.2} (goal < 2 s)",
         t1 / t2
     );
+    // the route's sync limit: 100,000 samples x 3 axes, one run each (2 threads as the route
+    // uses for large blocks, then 1 thread)
+    let servo3 = vec![servo[0].clone(), servo[1].clone(), servo[1].clone()];
+    let mut big = generate(Program::ZigZag, 3, period, false, &mut rng);
+    while big[0].len() < 100_000 {
+        let more = generate(Program::Circle, 3, period, true, &mut rng);
+        for k in 0..3 {
+            let off = big[k].last().copied().unwrap() - more[k][0];
+            big[k].extend(more[k].iter().map(|v| v + off));
+        }
+    }
+    for c in big.iter_mut() {
+        c.truncate(100_000);
+    }
+    let big_meas = measure(
+        &servo3,
+        &Truth::Backlash(vec![0.01, 0.008, 0.006], true),
+        &big,
+        period,
+        0.0003,
+        &mut rng,
+    );
+    let names3 = vec!["X".to_string(), "Y".to_string(), "Z".to_string()];
+    let big_block = MotionBlock {
+        commanded: big,
+        measured: big_meas,
+    };
+    let run_big = |threads: usize| {
+        let opts = MotionOptions {
+            threads,
+            ..MotionOptions::default()
+        };
+        let t = Instant::now();
+        let d = diagnose_motion(&names3, &servo3, period, &big_block, None, &opts).unwrap();
+        (t.elapsed().as_secs_f64(), d.verdict.name())
+    };
+    let (b2, v2) = run_big(2);
+    let (b1, _) = run_big(1);
+    println!(
+        "diagnosis of 100,000 samples x 3 axes (verdict {v2}): 2 threads {b2:.2} s, 1 thread {b1:.2} s, speed-up x{:.2}",
+        b1 / b2
+    );
     let exact = best_of(5, || {
         for (s, c) in servo.iter().zip(&cmd) {
             std::hint::black_box(simulate_axis(s, c, period).unwrap());

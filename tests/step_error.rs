@@ -141,7 +141,7 @@ async fn exact_rejects_bad_input(app: TestApp) {
     assert_problem(
         post(json!({"tool_radius": 5.0, "segments": [extra]})).await,
         400,
-        &["unknown field 'normals'"],
+        &["unknown or repeated field 'normals'"],
     )
     .await;
     // 1e999 overflows to infinity: rejected as non-finite

@@ -191,6 +191,14 @@ async fn bad_input_is_4xx(app: TestApp) {
         &["unknown model 'spline'"],
     )
     .await;
+    let d = m.measure_grid([8, 6, 5], 1);
+    let b = json!({"nodes": d.nodes, "errors": d.errors, "epochs": 20_000});
+    assert_problem(
+        app.put_json(MAP, &b).await,
+        400,
+        &["epochs × nodes = 20000 × 240", "at most 16666 epochs"],
+    )
+    .await;
     let mut b = grid_body(&m, "auto");
     b["epochs"] = json!(0);
     assert_problem(app.put_json(MAP, &b).await, 400, &["epochs"]).await;

@@ -11,7 +11,6 @@ use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
 use serde::{Deserialize, Serialize};
-use serde_json::value::RawValue;
 use serde_json::{Value, json};
 
 use super::AppState;
@@ -93,15 +92,6 @@ impl From<nn::Error> for ApiError {
 
 // ---------- lean request decoding ----------
 
-#[derive(Deserialize)]
-#[serde(deny_unknown_fields)]
-struct SegmentsBody<'a> {
-    #[serde(default)]
-    tool_radius: Option<f64>,
-    #[serde(borrow)]
-    segments: &'a RawValue,
-}
-
 fn check_tool_radius(r: f64) -> ApiResult<()> {
     if r.is_finite() && r > 0.0 && r < 1000.0 {
         Ok(())
@@ -124,49 +114,17 @@ pub fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f6
             "the request body is empty; send {\"tool_radius\": mm, \"segments\": [...]}",
         ));
     }
-    let req: SegmentsBody = serde_json::from_slice(body)
+    let req: json::SegmentsBody = serde_json::from_slice(body)
         .map_err(|e| ApiError::bad_request(format!("invalid JSON body: {e}")))?;
     if let Some(r) = req.tool_radius {
         check_tool_radius(r)?;
     }
-    let raw = req.segments.get().as_bytes();
-    let ranges = json::element_ranges(raw).map_err(ApiError::bad_request)?;
-    if ranges.is_empty() {
+    if req.batch.is_empty() {
         return Err(ApiError::bad_request(
             "segments is empty: send at least one {\"cl\": [...], \"cc\": [...]}",
         ));
     }
-    // Parse in parallel at segment boundaries, then concatenate.
-    let threads = std::thread::available_parallelism()
-        .map(|t| t.get())
-        .unwrap_or(1)
-        .min(8);
-    let per = ranges.len().div_ceil(threads).max(2048);
-    let parts: Vec<Result<SegmentBatch, String>> = std::thread::scope(|s| {
-        let hs: Vec<_> = ranges
-            .chunks(per)
-            .enumerate()
-            .map(|(c, chunk)| {
-                s.spawn(move || {
-                    let mut b = SegmentBatch::default();
-                    json::decode_into(raw, chunk, c * per, &mut b).map(|_| b)
-                })
-            })
-            .collect();
-        hs.into_iter()
-            .map(|h| h.join().unwrap_or_else(|_| Err("decoder crashed".into())))
-            .collect()
-    });
-    let mut all = SegmentBatch::default();
-    all.start.push(0);
-    for p in parts {
-        let p = p.map_err(ApiError::bad_request)?;
-        let base = all.cc.len();
-        all.cl.extend_from_slice(&p.cl);
-        all.cc.extend_from_slice(&p.cc);
-        all.start.extend(p.start[1..].iter().map(|s| s + base));
-    }
-    Ok((req.tool_radius, all))
+    Ok((req.tool_radius, req.batch))
 }
 
 /// Exact step errors of a batch, split over the machine's cores.

@@ -31,6 +31,9 @@ pub const MAX_NODES: usize = 20_000;
 pub const MAX_POINTS: usize = 100_000;
 /// Most training epochs a client may ask for.
 pub const MAX_EPOCHS: usize = 20_000;
+/// Most epochs × nodes a client may ask for per network (auto trains up to 17 networks
+/// in its cross-validation; this keeps a request under about a minute).
+pub const MAX_SAMPLE_PASSES: usize = 4_000_000;
 
 /// Routes of this resource.
 pub fn routes() -> Router<AppState> {
@@ -279,6 +282,15 @@ async fn put_map(
         )));
     }
     let options = fit_options(&request)?;
+    if let Some(e) = request.epochs
+        && e.saturating_mul(data.nodes.len()) > MAX_SAMPLE_PASSES
+    {
+        return Err(ApiError::bad_request(format!(
+            "epochs × nodes = {e} × {} exceeds {MAX_SAMPLE_PASSES} sample passes per network: ask for at most {} epochs",
+            data.nodes.len(),
+            MAX_SAMPLE_PASSES / data.nodes.len().max(1)
+        )));
+    }
     require_machine(&state, &machine).await?;
     let existed = state
         .store

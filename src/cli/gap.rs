@@ -8,9 +8,8 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use serde_json::{Value, json};
 
-use crate::api::gap::{GapRequest, diagnose_motion_request};
+use crate::api::gap::{GapAxes, GapRequest, diagnose_motion_request, gap_axes};
 use crate::gap::{MotionOptions, selfcheck};
-use crate::motion::Machine;
 
 /// Sim-to-real gap diagnosis: which unmodelled effect separates the servo simulation from
 /// measured positions, where, and how far the gap shrinks once it is added.
@@ -165,12 +164,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-fn read_machine(path: &PathBuf) -> anyhow::Result<Machine> {
+fn read_machine(path: &PathBuf) -> anyhow::Result<GapAxes> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let def: Value =
         serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    Machine::from_json(&def).map_err(|e| anyhow::anyhow!("machine {}: {e}", path.display()))
+    gap_axes(&path.display().to_string(), &def).map_err(|e| anyhow::anyhow!("{}", e.detail()))
 }
 
 type Rows = Vec<Vec<f64>>;

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
 use crate::gap::effects::{Effect, Fitted, cyclic_phase, first_direction, thermal_basis};
-use crate::gap::plant::{AxisPlant, play};
+use crate::gap::plant::AxisPlant;
 
 /// What a fit sees: the plant, one block's command, measurement and stored simulation.
 pub struct FitData<'a> {
@@ -62,7 +62,17 @@ pub fn sse(meas: &[f64], pred: &[f64], w: &[f64]) -> f64 {
 /// bracket or `iterations` evaluations. Returns `(x, f(x))` of the best point seen.
 /// Reference: R. P. Brent, "Algorithms for Minimization without Derivatives" (1973), ch. 5.
 /// Bad cases: a minimum narrower than the grid spacing elsewhere on the grid is missed.
-pub fn minimize_1d(mut f: impl FnMut(f64) -> f64, grid: &[f64], iterations: usize) -> (f64, f64) {
+pub fn minimize_1d(f: impl FnMut(f64) -> f64, grid: &[f64], iterations: usize) -> (f64, f64) {
+    minimize_1d_tol(f, grid, iterations, 1e-4)
+}
+
+/// [`minimize_1d`] stopping when the bracket is below `rel_tol` of the initial bracket.
+pub fn minimize_1d_tol(
+    mut f: impl FnMut(f64) -> f64,
+    grid: &[f64],
+    iterations: usize,
+    rel_tol: f64,
+) -> (f64, f64) {
     let vals: Vec<f64> = grid.iter().map(|&x| f(x)).collect();
     let (k, _) =
         vals.iter().enumerate().fold(
@@ -71,7 +81,7 @@ pub fn minimize_1d(mut f: impl FnMut(f64) -> f64, grid: &[f64], iterations: usiz
         );
     let (mut a, mut b) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
     let cgold = 0.5 * (3.0 - 5f64.sqrt());
-    let tol = 1e-4 * (b - a).abs().max(1e-300);
+    let tol = rel_tol * (b - a).abs().max(1e-300);
     let (mut x, mut fx) = (grid[k], vals[k]);
     let (mut w, mut fw, mut v, mut fv) = (x, fx, x, fx);
     let (mut d, mut e) = (0.0f64, 0.0f64);
@@ -129,6 +139,20 @@ pub fn minimize_1d(mut f: impl FnMut(f64) -> f64, grid: &[f64], iterations: usiz
     (x, fx)
 }
 
+/// `Σ wᵢ (measᵢ − play(motor)ᵢ)²` without materialising the play output (see
+/// [`crate::gap::plant::play`]).
+fn play_sse(motor: &[f64], meas: &[f64], b: f64, c0: f64, w: &[f64]) -> f64 {
+    let half = 0.5 * b.max(0.0);
+    let Some(&m0) = motor.first() else { return 0.0 };
+    let mut table = m0 + c0.clamp(-half, half);
+    let mut acc = 0.0;
+    for ((&m, &y), &wi) in motor.iter().zip(meas).zip(w) {
+        table = table.clamp(m - half, m + half);
+        acc += wi * (y - table) * (y - table);
+    }
+    acc
+}
+
 fn quadratic_grid(max: f64, n: usize) -> Vec<f64> {
     (0..n)
         .map(|i| max * (i as f64 / (n - 1) as f64).powi(2))
@@ -160,7 +184,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                             sse(&data.meas[k], &p.with_friction(f, &data.cmd[k]), w)
                         }
                     };
-                    minimize_1d(loss, &grid, 14).0
+                    minimize_1d_tol(loss, &grid, 14, 1e-2).0
                 })
                 .collect();
             Fitted::CoulombFriction { f }
@@ -177,27 +201,19 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                 // the start in the gap only shows before the gap first closes; when the
                 // training samples cannot tell (exact ties), the prior (full-data fit) wins
                 let best_start = |b: f64| -> (f64, f64) {
-                    let mut best = (
-                        prior[k],
-                        sse(
-                            &data.meas[k],
-                            &play(&data.base[k], b, prior[k] * 0.5 * b * dir),
-                            w,
-                        ),
-                    );
+                    let loss =
+                        |st: f64| play_sse(&data.base[k], &data.meas[k], b, st * 0.5 * b * dir, w);
+                    let mut best = (prior[k], loss(prior[k]));
                     for st in [-1.0, 0.0, 1.0] {
-                        let l = sse(
-                            &data.meas[k],
-                            &play(&data.base[k], b, st * 0.5 * b * dir),
-                            w,
-                        );
+                        let l = loss(st);
                         if l < best.1 * (1.0 - 1e-12) {
                             best = (st, l);
                         }
                     }
                     best
                 };
-                let (b, _) = minimize_1d(|b| best_start(b).1, &quadratic_grid(0.25, 16), 16);
+                let (b, _) =
+                    minimize_1d_tol(|b| best_start(b).1, &quadratic_grid(0.25, 16), 16, 1e-2);
                 starts.push(best_start(b).0);
                 bs.push(b);
             }
@@ -221,7 +237,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                             sse(&data.meas[k], &p.with_kv(kv, &data.cmd[k]), w)
                         }
                     };
-                    minimize_1d(loss, &grid, 16).0
+                    minimize_1d_tol(loss, &grid, 16, 1e-2).0
                 })
                 .collect();
             Fitted::ServoGainMismatch { kv }
@@ -273,10 +289,10 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
             for k in 0..axes {
                 let x = &data.base[k];
                 let r: Vec<f64> = data.meas[k].iter().zip(x).map(|(m, b)| m - b).collect();
-                let solve = |p: f64| -> (f64, f64, f64) {
+                let solve_strided = |p: f64, stride: usize| -> (f64, f64, f64) {
                     let (mut ss, mut sc, mut cc, mut rs, mut rc, mut rr) =
                         (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
-                    for i in 0..w.len() {
+                    for i in (0..w.len()).step_by(stride) {
                         if w[i] == 0.0 {
                             continue;
                         }
@@ -313,8 +329,21 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                 let grid: Vec<f64> = (0..=steps)
                     .map(|i| 0.5f64.ln() + i as f64 * (top / 0.5).ln() / steps as f64)
                     .collect();
-                let (lp, _) = minimize_1d(|lp| solve(lp.exp()).2, &grid, 14);
-                let (a, b, _) = solve(lp.exp());
+                // the pitch search runs on at most ~20,000 samples, the refinement on all
+                let stride = (w.len() / 20_000).max(1);
+                let coarse: Vec<f64> = grid
+                    .iter()
+                    .map(|lp| solve_strided(lp.exp(), stride).2)
+                    .collect();
+                let kbest =
+                    (0..grid.len()).fold(0, |a, i| if coarse[i] < coarse[a] { i } else { a });
+                let near = [
+                    grid[kbest.saturating_sub(1)],
+                    grid[kbest],
+                    grid[(kbest + 1).min(grid.len() - 1)],
+                ];
+                let (lp, _) = minimize_1d_tol(|lp| solve_strided(lp.exp(), 1).2, &near, 14, 1e-3);
+                let (a, b, _) = solve_strided(lp.exp(), 1);
                 pitch.push(lp.exp());
                 sn.push(a);
                 cs.push(b);

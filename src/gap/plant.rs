@@ -10,7 +10,7 @@ use crate::motion::StructuralMode;
 use crate::motion::servo::{ContinuousServo, DiscreteServo, ServoAxis};
 
 /// Friction sub-steps per interpolation period (the friction force is held over a sub-step).
-pub const FRICTION_SUBSTEPS: usize = 8;
+pub const FRICTION_SUBSTEPS: usize = 4;
 
 /// One axis of the plant: the stored servo discretized for the period and for sub-steps.
 #[derive(Clone, Debug)]
@@ -87,11 +87,11 @@ impl AxisPlant {
     /// loop (ideal velocity loop) friction becomes a velocity deficit `f` in mm/s:
     /// `dx/dt = v_ref − f·sign(v_ref)`, zero while `|v_ref| ≤ f`.
     ///
-    /// The force is held over sub-steps of period/8 and the linear part is exact, so with
+    /// The force is held over sub-steps of period/4 and the linear part is exact, so with
     /// `f = 0` this equals [`AxisPlant::linear`] to rounding. Reference: Armstrong-Hélouvry,
     /// Dupont, Canudas de Wit, "A survey of models ... machines with friction", Automatica 30
     /// (1994), Karnopp stick model. Bad cases: sub-step resolution limits stick timing to
-    /// period/8.
+    /// period/4.
     pub fn with_friction(&self, f: f64, command: &[f64]) -> Vec<f64> {
         let mut out = Vec::with_capacity(command.len());
         let Some(&c0) = command.first() else {

@@ -292,18 +292,48 @@ mod tests {
         assert!(ideal.report.orientation_max_deg.unwrap() < 1e-6);
     }
 
+    /// One G-code line from a mix of modes, axis words, arcs (R form), RTCP toggles, feeds.
+    fn gcode_line() -> impl proptest::strategy::Strategy<Value = String> {
+        use proptest::prelude::*;
+        let word = |r: std::ops::Range<f64>| proptest::option::of(r);
+        (
+            0usize..9,
+            (word(-40.0..40.0), word(-40.0..40.0), word(-20.0..20.0)),
+            (word(-60.0..60.0), word(-400.0..400.0)),
+            (30.0..90.0f64, word(100.0..6000.0)),
+        )
+            .prop_map(|(code, (x, y, z), (a, c), (r, f))| {
+                let head = [
+                    "G0", "G1", "G2", "G3", "G43.4 G1", "G49 G1", "G91 G1", "G90 G1", "G4 P20",
+                ][code];
+                if code == 8 {
+                    return head.to_string();
+                }
+                let mut line = head.to_string();
+                for (l, v) in [("X", x), ("Y", y), ("Z", z), ("A", a), ("C", c)] {
+                    if let Some(v) = v {
+                        line += &format!(" {l}{v:.3}");
+                    }
+                }
+                if code == 2 || code == 3 {
+                    line += &format!(" R{r:.3}");
+                }
+                if let Some(f) = f {
+                    line += &format!(" F{f:.0}");
+                }
+                line
+            })
+    }
+
     proptest::proptest! {
-        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(120))]
-        /// The whole pipeline never panics on G-code-like input: an answer with finite
-        /// numbers of equal lengths, or a typed error.
+        #![proptest_config(proptest::prelude::ProptestConfig::with_cases(100))]
+        /// The whole pipeline never panics on random programs: an answer with finite numbers
+        /// of equal lengths, or a typed error.
         #[test]
-        fn pipeline_never_panics(
-            s in "(G[0-4] |G9[0134] |G1[789] |G43.4 |G49 |TRAORI |TRAFOOF )?([XYZACP][-]?[0-9]{1,2}(\\.[0-9]{1,3})? ){1,4}([IJKR][-]?[0-9]{1,2} ){0,2}(F[1-9][0-9]{2,4})?\n{1,6}"
-        ) {
+        fn pipeline_never_panics(lines in proptest::collection::vec(gcode_line(), 1..8)) {
             let m = five_axis(0.5, 30.0);
-            let r = predict_contour_error(&m, &format!("G1 F2000\n{s}"), 1e-3, 20_000);
-            eprintln!("DBG {}", r.is_ok());
-            if let Ok(p) = r {
+            let text = format!("G1 F2000\n{}\n", lines.join("\n"));
+            if let Ok(p) = predict_contour_error(&m, &text, 1e-3, 60_000) {
                 let n = p.commanded.t.len();
                 proptest::prop_assert_eq!(p.report.contour_error.len(), n);
                 proptest::prop_assert!(p.actual.iter().all(|c| c.len() == n));

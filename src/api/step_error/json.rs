@@ -1,9 +1,13 @@
-//! Lean decoding of the `segments` array of the step-error routes.
+//! Lean decoding of the bodies of the step-error routes.
 //!
-//! serde_json first checks the whole body's syntax and hands over `segments` as raw text; this
-//! module then reads the numbers straight into flat buffers, split across threads at segment
-//! boundaries. It exists for speed: typed serde decoding of 100,000 segments (about 130 MB of
-//! JSON per million segments) allocates a `Vec` per segment and dominates the route's time.
+//! One serde_json pass with visitors that write the points straight into flat buffers: typed
+//! decoding into `Vec<StepErrorSegment>` allocates a `Vec` per segment, and 100,000 segments are
+//! about 70-130 MB of JSON, so the decoder is most of the route's time.
+
+use std::borrow::Cow;
+use std::fmt;
+
+use serde::de::{self, DeserializeSeed, Deserializer, MapAccess, SeqAccess, Visitor};
 
 /// Segments decoded into flat storage: segment `i` has CL points `cl[i]` and CC points
 /// `cc[start[i]..start[i + 1]]`.
@@ -34,265 +38,220 @@ impl SegmentBatch {
     }
 }
 
-/// Byte ranges of the elements of a JSON array given as syntactically valid text.
-pub fn element_ranges(raw: &[u8]) -> Result<Vec<(usize, usize)>, String> {
-    let mut i = 0;
-    while i < raw.len() && raw[i].is_ascii_whitespace() {
-        i += 1;
-    }
-    if raw.get(i) != Some(&b'[') {
-        return Err("segments must be an array of {\"cl\": [[x,y,z],[x,y,z]], \"cc\": [[x,y,z], ...]} objects".into());
-    }
-    let mut out = Vec::new();
-    let mut depth = 0usize;
-    let mut start = None;
-    let mut in_str = false;
-    let mut esc = false;
-    for (k, &c) in raw.iter().enumerate().skip(i) {
-        if in_str {
-            if esc {
-                esc = false;
-            } else if c == b'\\' {
-                esc = true;
-            } else if c == b'"' {
-                in_str = false;
-            }
-            continue;
-        }
-        match c {
-            b'"' => in_str = true,
-            b'[' | b'{' => {
-                depth += 1;
-                if depth == 2 && start.is_none() {
-                    start = Some(k);
-                }
-            }
-            b']' | b'}' => {
-                if depth == 2
-                    && let Some(s) = start.take()
-                {
-                    out.push((s, k + 1));
-                }
-                depth = depth.saturating_sub(1);
-            }
-            b',' if depth == 1 => {}
-            c if depth == 1 && !c.is_ascii_whitespace() => {
-                return Err(format!(
-                    "segments[{}] must be an object with cl and cc",
-                    out.len()
-                ));
-            }
-            _ => {}
-        }
-    }
-    Ok(out)
+/// A decoded `{"tool_radius"?: mm, "segments": [...]}` body.
+#[derive(Debug, Default)]
+pub struct SegmentsBody {
+    /// Ball radius, mm, when sent.
+    pub tool_radius: Option<f64>,
+    /// The segments.
+    pub batch: SegmentBatch,
 }
 
-struct Cursor<'a> {
-    b: &'a [u8],
-    i: usize,
+impl<'de> de::Deserialize<'de> for SegmentsBody {
+    fn deserialize<D: Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        d.deserialize_map(BodyVisitor)
+    }
 }
 
-impl Cursor<'_> {
-    fn ws(&mut self) {
-        while self.i < self.b.len() && self.b[self.i].is_ascii_whitespace() {
-            self.i += 1;
+struct BodyVisitor;
+
+impl<'de> Visitor<'de> for BodyVisitor {
+    type Value = SegmentsBody;
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("an object {\"tool_radius\": mm, \"segments\": [...]}")
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<SegmentsBody, A::Error> {
+        let mut out = SegmentsBody::default();
+        out.batch.start.push(0);
+        let mut have_segments = false;
+        while let Some(key) = map.next_key::<Cow<'de, str>>()? {
+            match key.as_ref() {
+                "tool_radius" => out.tool_radius = Some(map.next_value()?),
+                "segments" => {
+                    map.next_value_seed(SegmentsSeed(&mut out.batch))?;
+                    have_segments = true;
+                }
+                other => {
+                    return Err(de::Error::custom(format!(
+                        "unknown field '{other}': the body has tool_radius and segments"
+                    )));
+                }
+            }
         }
-    }
-
-    fn peek(&mut self) -> Option<u8> {
-        self.ws();
-        self.b.get(self.i).copied()
-    }
-
-    fn eat(&mut self, c: u8) -> bool {
-        if self.peek() == Some(c) {
-            self.i += 1;
-            true
-        } else {
-            false
+        if !have_segments {
+            return Err(de::Error::custom("segments is missing"));
         }
+        Ok(out)
+    }
+}
+
+struct SegmentsSeed<'b>(&'b mut SegmentBatch);
+
+impl<'de> DeserializeSeed<'de> for SegmentsSeed<'_> {
+    type Value = ();
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_seq(self)
+    }
+}
+
+impl<'de> Visitor<'de> for SegmentsSeed<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str(
+            "segments: an array of {\"cl\": [[x,y,z],[x,y,z]], \"cc\": [[x,y,z], ...]} objects",
+        )
     }
 
-    fn number(&mut self) -> Option<f64> {
-        self.ws();
-        let s = self.i;
-        while self.i < self.b.len()
-            && matches!(
-                self.b[self.i],
-                b'0'..=b'9' | b'-' | b'+' | b'.' | b'e' | b'E'
-            )
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        let mut index = 0;
+        while seq
+            .next_element_seed(SegmentSeed {
+                batch: &mut *self.0,
+                index,
+            })?
+            .is_some()
         {
-            self.i += 1;
+            index += 1;
         }
-        std::str::from_utf8(&self.b[s..self.i]).ok()?.parse().ok()
-    }
-
-    fn point(&mut self) -> Option<[f64; 3]> {
-        if !self.eat(b'[') {
-            return None;
-        }
-        let x = self.number()?;
-        if !self.eat(b',') {
-            return None;
-        }
-        let y = self.number()?;
-        if !self.eat(b',') {
-            return None;
-        }
-        let z = self.number()?;
-        self.eat(b']').then_some([x, y, z])
-    }
-
-    fn key(&mut self) -> Option<&[u8]> {
-        if !self.eat(b'"') {
-            return None;
-        }
-        let s = self.i;
-        while self.i < self.b.len() && self.b[self.i] != b'"' {
-            self.i += 1;
-        }
-        let k = &self.b[s..self.i];
-        self.i += 1;
-        Some(k)
+        Ok(())
     }
 }
 
-/// Decodes the segment objects at `ranges` of `raw` (indices from `first`) into `out`.
-pub fn decode_into(
-    raw: &[u8],
-    ranges: &[(usize, usize)],
-    first: usize,
-    out: &mut SegmentBatch,
-) -> Result<(), String> {
-    out.start.push(out.cc.len());
-    for (k, &(s, e)) in ranges.iter().enumerate() {
-        let idx = first + k;
-        let bad = |what: &str| format!("segments[{idx}]: {what}");
-        let mut c = Cursor {
-            b: &raw[s..e],
-            i: 0,
-        };
-        if !c.eat(b'{') {
-            return Err(bad("must be an object with cl and cc"));
-        }
+struct SegmentSeed<'b> {
+    batch: &'b mut SegmentBatch,
+    index: usize,
+}
+
+impl<'de> DeserializeSeed<'de> for SegmentSeed<'_> {
+    type Value = ();
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_map(self)
+    }
+}
+
+impl<'de> Visitor<'de> for SegmentSeed<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        write!(f, "segments[{}] to be an object with cl and cc", self.index)
+    }
+
+    fn visit_map<A: MapAccess<'de>>(self, mut map: A) -> Result<(), A::Error> {
+        let i = self.index;
+        let b = self.batch;
+        let begin = b.cc.len();
         let (mut cl, mut have_cl, mut have_cc) = ([[0.0; 3]; 2], false, false);
-        let cc_begin = out.cc.len();
-        if !c.eat(b'}') {
-            loop {
-                let key = c
-                    .key()
-                    .ok_or_else(|| bad("expected a field name"))?
-                    .to_vec();
-                if !c.eat(b':') {
-                    return Err(bad("expected ':'"));
+        while let Some(key) = map.next_key::<Cow<'de, str>>()? {
+            match key.as_ref() {
+                "cl" => {
+                    cl = map.next_value::<[[f64; 3]; 2]>().map_err(|_| {
+                        de::Error::custom(format!(
+                            "segments[{i}]: cl must be two points [[x,y,z],[x,y,z]] (mm)"
+                        ))
+                    })?;
+                    have_cl = true;
                 }
-                match key.as_slice() {
-                    b"cl" => {
-                        let pts = (|| {
-                            if !c.eat(b'[') {
-                                return None;
-                            }
-                            let a = c.point()?;
-                            if !c.eat(b',') {
-                                return None;
-                            }
-                            let b = c.point()?;
-                            c.eat(b']').then_some([a, b])
-                        })();
-                        cl =
-                            pts.ok_or_else(|| bad("cl must be two points [[x,y,z],[x,y,z]] (mm)"))?;
-                        have_cl = true;
-                    }
-                    b"cc" => {
-                        if have_cc {
-                            return Err(bad("cc given twice"));
-                        }
-                        let ok = (|| {
-                            if !c.eat(b'[') {
-                                return None;
-                            }
-                            if c.eat(b']') {
-                                return Some(());
-                            }
-                            loop {
-                                out.cc.push(c.point()?);
-                                if c.eat(b']') {
-                                    return Some(());
-                                }
-                                if !c.eat(b',') {
-                                    return None;
-                                }
-                            }
-                        })();
-                        ok.ok_or_else(|| bad("cc must be an array of points [[x,y,z], ...] (mm)"))?;
-                        have_cc = true;
-                    }
-                    other => {
-                        return Err(bad(&format!(
-                            "unknown field '{}': a segment has only cl and cc",
-                            String::from_utf8_lossy(other)
-                        )));
-                    }
+                "cc" if !have_cc => {
+                    map.next_value_seed(PointsSeed(&mut b.cc)).map_err(|_| {
+                        de::Error::custom(format!(
+                            "segments[{i}]: cc must be an array of points [[x,y,z], ...] (mm)"
+                        ))
+                    })?;
+                    have_cc = true;
                 }
-                if c.eat(b'}') {
-                    break;
-                }
-                if !c.eat(b',') {
-                    return Err(bad("expected ',' or '}'"));
+                other => {
+                    return Err(de::Error::custom(format!(
+                        "segments[{i}]: unknown or repeated field '{other}': a segment has only cl and cc"
+                    )));
                 }
             }
         }
         if !have_cl || !have_cc {
-            out.cc.truncate(cc_begin);
-            return Err(bad(if have_cl {
+            b.cc.truncate(begin);
+            let what = if have_cl {
                 "cc is missing"
             } else {
                 "cl is missing"
-            }));
+            };
+            return Err(de::Error::custom(format!("segments[{i}]: {what}")));
         }
-        out.cl.push(cl);
-        out.start.push(out.cc.len());
+        b.cl.push(cl);
+        b.start.push(b.cc.len());
+        Ok(())
     }
-    Ok(())
+}
+
+struct PointsSeed<'b>(&'b mut Vec<[f64; 3]>);
+
+impl<'de> DeserializeSeed<'de> for PointsSeed<'_> {
+    type Value = ();
+
+    fn deserialize<D: Deserializer<'de>>(self, d: D) -> Result<(), D::Error> {
+        d.deserialize_seq(self)
+    }
+}
+
+impl<'de> Visitor<'de> for PointsSeed<'_> {
+    type Value = ();
+
+    fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+        f.write_str("an array of points [x, y, z]")
+    }
+
+    fn visit_seq<A: SeqAccess<'de>>(self, mut seq: A) -> Result<(), A::Error> {
+        while let Some(p) = seq.next_element::<[f64; 3]>()? {
+            self.0.push(p);
+        }
+        Ok(())
+    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
+    fn decode(raw: &str) -> Result<SegmentsBody, String> {
+        serde_json::from_str::<SegmentsBody>(raw).map_err(|e| e.to_string())
+    }
+
     #[test]
     fn decodes_segments_in_any_key_order_and_reports_bad_ones() {
-        let raw = br#" [ {"cc": [[0,0,0],[1,0,0.5],[2,0,0]], "cl": [[0,0,5],[2,0,5]]},
-                        {"cl":[[1e0,2,3],[4,5,6]],"cc":[[1,2,3],[2,3,4],[3,4,5],[4,5,6]]} ] "#;
-        let r = element_ranges(raw).unwrap();
-        assert_eq!(r.len(), 2);
-        let mut b = SegmentBatch::default();
-        decode_into(raw, &r, 0, &mut b).unwrap();
+        let raw = r#" {"segments": [ {"cc": [[0,0,0],[1,0,0.5],[2,0,0]], "cl": [[0,0,5],[2,0,5]]},
+                        {"cl":[[1e0,2,3],[4,5,6]],"cc":[[1,2,3],[2,3,4],[3,4,5],[4,5,6]]} ], "tool_radius": 5} "#;
+        let b = decode(raw).unwrap();
+        assert_eq!(b.tool_radius, Some(5.0));
+        let b = b.batch;
         assert_eq!(b.len(), 2);
         assert_eq!(b.get(0).1.len(), 3);
         assert_eq!(b.get(1).0, [[1.0, 2.0, 3.0], [4.0, 5.0, 6.0]]);
         assert_eq!(b.get(1).1[3], [4.0, 5.0, 6.0]);
         for (bad, msg) in [
             (
-                &br#"[{"cl": [[0,0,5]], "cc": [[0,0,0]]}]"#[..],
-                "cl must be two points",
+                r#"{"segments": [{"cl": [[0,0,5]], "cc": [[0,0,0]]}]}"#,
+                "segments[0]: cl must be two points",
             ),
-            (br#"[{"cl": [[0,0,5],[1,1,1]]}]"#, "cc is missing"),
             (
-                br#"[{"cl": [[0,0,5],[1,1,1]], "cc": [[0,0]], "x": 1}]"#,
+                r#"{"segments": [{"cl": [[0,0,5],[1,1,1]]}]}"#,
+                "cc is missing",
+            ),
+            (
+                r#"{"segments": [{"cl": [[0,0,5],[1,1,1]], "cc": [[0,0]]}]}"#,
                 "cc must be an array",
             ),
             (
-                br#"[{"cl": [[0,0,5],[1,1,1]], "cc": [], "x": 1}]"#,
-                "unknown field 'x'",
+                r#"{"segments": [{"cl": [[0,0,5],[1,1,1]], "cc": [], "x": 1}]}"#,
+                "unknown or repeated field 'x'",
             ),
-            (br#"[1]"#, "must be an object"),
+            (r#"{"segments": [1]}"#, "segments[0]"),
+            (r#"{"tool_radius": 1}"#, "segments is missing"),
+            (r#"{"segments": [], "y": 2}"#, "unknown field 'y'"),
         ] {
-            let e = element_ranges(bad).and_then(|r| {
-                let mut b = SegmentBatch::default();
-                decode_into(bad, &r, 0, &mut b)
-            });
+            let e = decode(bad);
             assert!(
                 e.as_ref().is_err_and(|m| m.contains(msg)),
                 "{e:?} should say {msg}"
