@@ -122,7 +122,6 @@ fn rk4_axis(servo: &ServoAxis, cmd: &[f64], period: f64, friction: f64) -> Vec<f
     const VS: f64 = 0.05;
     let stiff = friction / VS * period;
     let sub = (16.0f64).max((stiff / 1.5).ceil()) as usize;
-    let h = period / sub as f64;
     let deriv = |st: [f64; 4], r: f64, s: f64| -> [f64; 4] {
         let [x, v, a, z] = st;
         let v_ref = servo.kff * s + servo.kv * (r - x);
@@ -147,32 +146,7 @@ fn rk4_axis(servo: &ServoAxis, cmd: &[f64], period: f64, friction: f64) -> Vec<f
             }
         }
     };
-    let mut st = [cmd[0], 0.0, 0.0, 0.0];
-    let mut out = vec![cmd[0]];
-    for w in cmd.windows(2) {
-        let s = (w[1] - w[0]) / period;
-        for k in 0..sub {
-            let t0 = k as f64 * h;
-            let r = |t: f64| w[0] + s * t;
-            let add = |a: [f64; 4], b: [f64; 4], f: f64| {
-                [
-                    a[0] + f * b[0],
-                    a[1] + f * b[1],
-                    a[2] + f * b[2],
-                    a[3] + f * b[3],
-                ]
-            };
-            let k1 = deriv(st, r(t0), s);
-            let k2 = deriv(add(st, k1, h / 2.0), r(t0 + h / 2.0), s);
-            let k3 = deriv(add(st, k2, h / 2.0), r(t0 + h / 2.0), s);
-            let k4 = deriv(add(st, k3, h), r(t0 + h), s);
-            for i in 0..4 {
-                st[i] += h / 6.0 * (k1[i] + 2.0 * k2[i] + 2.0 * k3[i] + k4[i]);
-            }
-        }
-        out.push(st[0]);
-    }
-    out
+    crate::motion::rk4::rk4_first_order_hold(cmd, period, sub, deriv)
 }
 
 /// Measured positions (per axis, mm) of the truth plant for `cmd`, plus Gaussian noise `sigma`.

@@ -11,6 +11,7 @@ pub mod physical;
 pub mod predict;
 pub mod profile;
 pub mod program;
+pub mod rk4;
 pub mod servo;
 
 pub use contour::{ContourReport, contour_error};
