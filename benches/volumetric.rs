@@ -7,16 +7,18 @@
 
 use std::time::Instant;
 use truecut::volumetric::{
-    AxisLine, AxisLines, FitOptions, ModelKind, NetworkMap, NetworkOptions, ShapeFamily,
-    SyntheticMachine, additive_grid, fit,
+    AxisLine, AxisLines, FitOptions, ModelKind, NetworkMap, NetworkOptions, ResidualKind,
+    ShapeFamily, SyntheticMachine, additive_grid, fit,
 };
 
-const KINDS: [ModelKind; 5] = [
-    ModelKind::Trilinear,
-    ModelKind::Network,
-    ModelKind::Kinematic,
-    ModelKind::Hybrid,
-    ModelKind::Auto,
+/// Models in the table; the hybrid twice, with each residual part.
+const KINDS: [(ModelKind, ResidualKind); 6] = [
+    (ModelKind::Trilinear, ResidualKind::Spline),
+    (ModelKind::Network, ResidualKind::Spline),
+    (ModelKind::Kinematic, ResidualKind::Spline),
+    (ModelKind::Hybrid, ResidualKind::Spline),
+    (ModelKind::Hybrid, ResidualKind::Network),
+    (ModelKind::Auto, ResidualKind::Spline),
 ];
 
 struct Row {
@@ -42,9 +44,10 @@ fn run(family: ShapeFamily, sag_mm: f64, grid: [usize; 3], seeds: &[u64]) -> Vec
         let data = m.measure_grid(grid, seed + 1000);
         let pts = m.random_points(5000, seed + 2000);
         let truth: Vec<[f64; 3]> = pts.iter().map(|&p| m.error(p)).collect();
-        for (r, &kind) in rows.iter_mut().zip(&KINDS) {
+        for (r, &(kind, residual)) in rows.iter_mut().zip(&KINDS) {
             let opts = FitOptions {
                 model: kind,
+                residual,
                 tool_offset_mm: m.tool_offset_mm,
                 ..FitOptions::default()
             };
@@ -78,7 +81,7 @@ fn table(title: &str, family: ShapeFamily, sag_mm: f64, seeds: &[u64]) {
     for grid in [[7, 6, 5], [4, 4, 3]] {
         let rows = run(family, sag_mm, grid, seeds);
         let tri = &rows[0];
-        for (r, kind) in rows.iter().zip(&KINDS) {
+        for (r, (kind, residual)) in rows.iter().zip(&KINDS) {
             let ratios: Vec<f64> = r
                 .rms_um
                 .iter()
@@ -89,6 +92,12 @@ fn table(title: &str, family: ShapeFamily, sag_mm: f64, seeds: &[u64]) {
                 let mut c: Vec<&str> = r.chosen.iter().map(|k| k.name()).collect();
                 c.dedup();
                 format!("auto → {}", c.join("/"))
+            } else if *kind == ModelKind::Hybrid {
+                let part = match residual {
+                    ResidualKind::Spline => "spline",
+                    ResidualKind::Network => "network",
+                };
+                format!("hybrid ({part} residual)")
             } else {
                 kind.name().to_string()
             };

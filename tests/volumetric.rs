@@ -37,10 +37,27 @@ async fn fit_predict_and_describe(app: TestApp) {
     let chosen = body["model"].as_str().unwrap().to_string();
     assert!(body["parameter_count"].as_u64().unwrap() > 0);
     assert!(body["scores"][0]["cv_rms_mm"].as_f64().unwrap() > 0.0);
+    // the hybrid's residual part: spline by default, the network on request
+    let mut hybrid_counts = vec![];
+    for residual in ["spline", "network"] {
+        let mut b = grid_body(&m, "hybrid");
+        b["residual"] = json!(residual);
+        let r = app.put_json(MAP, &b).await;
+        assert_eq!(r.status(), 200, "hybrid with {residual}");
+        let body: Value = r.json().await.unwrap();
+        assert_eq!(body["model"], "hybrid");
+        hybrid_counts.push(body["parameter_count"].as_u64().unwrap());
+    }
     // replacing answers 200
     let r = app.put_json(MAP, &grid_body(&m, "kinematic")).await;
     assert_eq!(r.status(), 200);
-    assert_eq!(r.json::<Value>().await.unwrap()["model"], "kinematic");
+    let body: Value = r.json().await.unwrap();
+    assert_eq!(body["model"], "kinematic");
+    let kinematic_count = body["parameter_count"].as_u64().unwrap();
+    assert!(
+        hybrid_counts.iter().all(|&c| c > kinematic_count),
+        "hybrid {hybrid_counts:?} vs kinematic {kinematic_count}"
+    );
     // predictions follow the machine off the grid, outside points are flagged
     let pts = m.random_points(200, 4);
     let mut query = pts.clone();
@@ -189,6 +206,14 @@ async fn bad_input_is_4xx(app: TestApp) {
         app.put_json(MAP, &b).await,
         400,
         &["unknown model 'spline'"],
+    )
+    .await;
+    let mut b = grid_body(&m, "hybrid");
+    b["residual"] = json!("kriging");
+    assert_problem(
+        app.put_json(MAP, &b).await,
+        400,
+        &["residual must be \"spline\" or \"network\"", "'kriging'"],
     )
     .await;
     let d = m.measure_grid([8, 6, 5], 1);

@@ -19,8 +19,8 @@ use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, check_id, check_points, content_type, decode_json, read_body};
 use super::lookup::require_machine;
 use crate::volumetric::{
-    self, AxisLines, FitOptions, ModelKind, NetworkOptions, TableSpec, VolumetricData,
-    VolumetricMap,
+    self, AxisLines, FitOptions, ModelKind, NetworkOptions, ResidualKind, TableSpec,
+    VolumetricData, VolumetricMap,
 };
 
 /// Kind under which the map is kept in the model store.
@@ -82,6 +82,7 @@ struct MapRequest {
     model: Option<String>,
     tool_offset_mm: Option<[f64; 3]>,
     degree: Option<usize>,
+    residual: Option<String>,
     max_points_per_axis: Option<usize>,
     hidden: Option<usize>,
     epochs: Option<usize>,
@@ -118,10 +119,11 @@ fn parse_query<T: std::str::FromStr>(
 }
 
 fn options_from_query(q: &HashMap<String, String>) -> ApiResult<MapRequest> {
-    const KNOWN: [&str; 8] = [
+    const KNOWN: [&str; 9] = [
         "model",
         "tool_offset_mm",
         "degree",
+        "residual",
         "max_points_per_axis",
         "hidden",
         "epochs",
@@ -141,6 +143,7 @@ fn options_from_query(q: &HashMap<String, String>) -> ApiResult<MapRequest> {
             .map(|v| parse_triple("tool_offset_mm", v))
             .transpose()?,
         degree: parse_query(q, "degree")?,
+        residual: q.get("residual").cloned(),
         max_points_per_axis: parse_query(q, "max_points_per_axis")?,
         hidden: parse_query(q, "hidden")?,
         epochs: parse_query(q, "epochs")?,
@@ -163,10 +166,19 @@ fn fit_options(r: &MapRequest) -> ApiResult<FitOptions> {
             "epochs must be between 1 and {MAX_EPOCHS} (default: about 40,000 mini-batch steps), got {e}"
         )));
     }
+    let residual = match r.residual.as_deref() {
+        None => d.residual,
+        Some(s) => ResidualKind::parse(s).ok_or_else(|| {
+            ApiError::bad_request(format!(
+                "residual must be \"spline\" or \"network\" (what the hybrid fits to the kinematic model's residual), got '{s}'"
+            ))
+        })?,
+    };
     Ok(FitOptions {
         model,
         tool_offset_mm: r.tool_offset_mm.unwrap_or(d.tool_offset_mm),
         degree: r.degree.unwrap_or(d.degree),
+        residual,
         max_points_per_axis: r.max_points_per_axis,
         network: NetworkOptions {
             hidden: r.hidden.unwrap_or(d.network.hidden),

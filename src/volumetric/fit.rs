@@ -2,7 +2,7 @@
 
 use super::Error;
 use super::data::{Bounds, VolumetricData};
-use super::hybrid::HybridModel;
+use super::hybrid::{HybridModel, ResidualKind};
 use super::kinematic::KinematicModel;
 use super::model::{Model, ModelKind};
 use super::network::{NetworkMap, NetworkOptions};
@@ -24,6 +24,8 @@ pub struct FitOptions {
     pub degree: usize,
     /// Controller table-size limit for the trilinear model (points per axis).
     pub max_points_per_axis: Option<usize>,
+    /// What the hybrid fits to the kinematic residual (default `spline`).
+    pub residual: ResidualKind,
     /// The seeds' network settings.
     pub network: NetworkOptions,
     /// At most this many cross-validation folds (default 8).
@@ -37,6 +39,7 @@ impl Default for FitOptions {
             tool_offset_mm: [0.0; 3],
             degree: 4,
             max_points_per_axis: None,
+            residual: ResidualKind::default(),
             network: NetworkOptions::default(),
             max_folds: 8,
         }
@@ -154,6 +157,7 @@ fn fit_kind(kind: ModelKind, data: &VolumetricData, o: &FitOptions) -> Result<Mo
             data,
             o.degree,
             o.tool_offset_mm,
+            o.residual,
             &o.network,
         )?),
         ModelKind::Auto => return Err(Error::UnknownModel("auto is not a concrete model".into())),
@@ -362,6 +366,9 @@ impl VolumetricMap {
                 m.version
             )));
         }
+        if let Model::Hybrid(h) = &m.model {
+            h.check()?;
+        }
         Ok(m)
     }
 }
@@ -446,24 +453,60 @@ mod tests {
         let mut m = SyntheticMachine::new(1, ShapeFamily::TrendAndWaviness);
         m.sag_mm = 8e-3;
         let d = m.measure_grid([7, 6, 5], 3);
-        let o = FitOptions {
-            model: ModelKind::Hybrid,
-            tool_offset_mm: m.tool_offset_mm,
-            max_folds: 2,
-            ..FitOptions::default()
-        };
-        let hybrid = fit(&d, &o).unwrap();
         let kin = fit(
             &d,
             &FitOptions {
                 model: ModelKind::Kinematic,
-                ..o.clone()
+                tool_offset_mm: m.tool_offset_mm,
+                max_folds: 2,
+                ..FitOptions::default()
             },
         )
         .unwrap();
-        let (h, k) = (off_grid_rms(&hybrid, &m), off_grid_rms(&kin, &m));
-        assert!(h < 0.85 * k, "hybrid {h} vs kinematic {k}");
-        assert_eq!(hybrid.scores.len(), 1);
+        let k = off_grid_rms(&kin, &m);
+        // the spline (default) must do better than the network on a smooth sag
+        let mut rms = vec![];
+        for residual in [ResidualKind::Spline, ResidualKind::Network] {
+            let o = FitOptions {
+                model: ModelKind::Hybrid,
+                residual,
+                ..kin.options.clone()
+            };
+            let hybrid = fit(&d, &o).unwrap();
+            let h = off_grid_rms(&hybrid, &m);
+            assert!(h < 0.85 * k, "hybrid ({residual:?}) {h} vs kinematic {k}");
+            assert_eq!(hybrid.scores.len(), 1);
+            let Model::Hybrid(model) = &hybrid.model else {
+                panic!("not a hybrid")
+            };
+            assert_eq!(model.residual_kind(), residual);
+            // the stored form round-trips with its residual part
+            let back = VolumetricMap::from_bytes(&hybrid.to_bytes()).unwrap();
+            let pts = m.random_points(50, 9);
+            let (a, b) = (back.model.eval_many(&pts), hybrid.model.eval_many(&pts));
+            for (a, b) in a.iter().zip(&b) {
+                assert!((0..3).all(|j| (a[j] - b[j]).abs() < 1e-12), "{a:?} {b:?}");
+            }
+            rms.push(h);
+        }
+        assert!(rms[0] < rms[1], "spline {} vs network {}", rms[0], rms[1]);
+        // a stored hybrid without a residual part is refused, not evaluated as rigid
+        let hybrid = fit(
+            &d,
+            &FitOptions {
+                model: ModelKind::Hybrid,
+                ..kin.options.clone()
+            },
+        )
+        .unwrap();
+        let mut v: serde_json::Value = serde_json::from_slice(&hybrid.to_bytes()).unwrap();
+        let removed = v["model"].as_object_mut().and_then(|o| o.remove("spline"));
+        assert!(removed.is_some(), "layout changed: {}", v["model"]);
+        let err = VolumetricMap::from_bytes(&serde_json::to_vec(&v).unwrap()).unwrap_err();
+        assert!(
+            err.to_string().contains("exactly one residual part"),
+            "{err}"
+        );
     }
 
     #[test]
