@@ -6,7 +6,8 @@
   surface 1 (formulas from ../shared/reference/step/README.md; curve points from the analytic surface).
 * A forward pass of the same network shape (inputs-28-20-2, ReLU) in numpy and, if installed, in
   PyTorch on CPU with 1 thread (float64 and float32).
-Prints one JSON line of segments/s (last line). Needs numpy; torch is optional (never installed by CI).
+Prints one JSON line of segments/s (last line); every rate is the best of 5-15 runs (the bench
+machine is shared). Needs numpy; torch is optional (never installed by CI).
 """
 import argparse, json, math, time
 import numpy as np
@@ -82,7 +83,7 @@ def main():
     n = len(segs[0])
     e = golden(*segs)
     out["golden_numpy_max_um"] = float(e.max() * 1000)
-    out["golden_numpy_seg_per_s"] = n / best_of(3, lambda: golden(*segs))
+    out["golden_numpy_seg_per_s"] = n / best_of(5, lambda: golden(*segs))
     rng = np.random.default_rng(0)
     sizes = [args.inputs, 28, 20, args.outputs]
     W = [rng.standard_normal((i, o)) * math.sqrt(2 / i) for i, o in zip(sizes[:-1], sizes[1:])]
@@ -96,7 +97,7 @@ def main():
                 np.maximum(x, 0, out=x)
         return x
 
-    out["forward_numpy_seg_per_s"] = X.shape[0] / best_of(5, lambda: fwd(X))
+    out["forward_numpy_seg_per_s"] = X.shape[0] / best_of(15, lambda: fwd(X))
     try:
         import torch
         torch.set_num_threads(1)
@@ -105,7 +106,7 @@ def main():
                                       torch.nn.Linear(20, sizes[-1])).to(dt).eval()
             xt = torch.from_numpy(X).to(dt)
             with torch.inference_mode():
-                out[key] = X.shape[0] / best_of(5, lambda: net(xt))
+                out[key] = X.shape[0] / best_of(15, lambda: net(xt))
         out["torch"] = torch.__version__
     except ImportError:
         out["torch"] = None

@@ -98,11 +98,16 @@ fn rel_rms(a: &[f64], b: &[f64]) -> f64 {
 /// less than the final update ~ sqrt(T·tol)/T ≈ 1e-6); centre frequencies to 1e-5 cycles/sample.
 #[test]
 fn vmd_matches_reference_lean_and_vmdpy() {
-    use truecut::signal::vmd::{VmdParams, vmd};
+    use truecut::signal::vmd::{Convergence, VmdParams, vmd};
     let r = load("vmd_seed0.json");
     let sig = load("signal_seed0.json");
     let x = vec(&sig["measured"]);
-    let out = vmd(&x, &VmdParams::default()).unwrap();
+    // vmdpy's stopping rule (also the default).
+    let abs = VmdParams {
+        convergence: Convergence::Absolute,
+        ..Default::default()
+    };
+    let out = vmd(&x, &abs).unwrap();
     let want_it = r["iterations"].as_u64().unwrap() as usize;
     assert!(
         out.iterations.abs_diff(want_it) <= 1,
@@ -120,7 +125,7 @@ fn vmd_matches_reference_lean_and_vmdpy() {
     let x = vec(&u["x"]);
     let p = VmdParams {
         k: Some(3),
-        ..Default::default()
+        ..abs.clone()
     };
     // vmdpy (even length) returns the second-to-last iterate: compare with a run stopped one
     // iteration earlier, which is exactly that iterate.

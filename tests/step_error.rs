@@ -153,13 +153,111 @@ async fn exact_rejects_bad_input(app: TestApp) {
             raw.as_bytes().to_vec(),
         )
         .await;
-    assert!(r.status() == 400 || r.status() == 422, "{}", r.status());
+    assert_problem(r, 400, &["segments[0]: cc[1][2] is not a finite number"]).await;
     let r = app
         .post_raw("/v1/step-error", "text/plain", b"{}".to_vec())
         .await;
     assert_problem(r, 415, &["application/json"]).await;
 }
 on_both_backends!(exact_rejects_bad_input);
+
+/// The decoder's sentences for bodies that are not the contract's shape, in small bodies and
+/// in large ones (decoded in blocks while they arrive).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn exact_explains_malformed_bodies() {
+    let app = spawn_app().await;
+    let seg = vectors()[0].0.to_string();
+    let post = |raw: String| {
+        let app = &app;
+        async move {
+            app.post_raw("/v1/step-error", "application/json", raw.into_bytes())
+                .await
+        }
+    };
+    for (raw, needles) in [
+        (
+            format!(r#"{{"tool_radius": 5, "tool_radius": 5, "segments": [{seg}]}}"#),
+            &["tool_radius appears twice"][..],
+        ),
+        (
+            format!(r#"{{"tool_radius": "5", "segments": [{seg}]}}"#),
+            &["tool_radius must be a number"],
+        ),
+        (
+            format!(r#"{{"tool_radius": 5, "segments": [{seg}]}} x"#),
+            &["invalid JSON body at byte", "expected the end of the body"],
+        ),
+        (
+            format!(r#"{{"tool_radius": 5, "segments": [{seg} {seg}]}}"#),
+            &["segments[1]: invalid JSON at byte", "expected ',' or ']'"],
+        ),
+        (
+            format!(r#"{{"tool_radius": 5, "segments": [{seg}, 7]}}"#),
+            &["segments[1] must be an object"],
+        ),
+        (
+            r#"{"tool_radius": 5, "segments": [{"cl": [[0,0,5],[1,0,5]], "cc": [[0,0,0],]}]}"#
+                .to_string(),
+            &["segments[0]: cc must be an array of points"],
+        ),
+        (
+            r#"{"tool_radius": 5, "segments": [{"cl": [[0,0,5],[1,0,5]]}]}"#.to_string(),
+            &["segments[0]: cc is missing"],
+        ),
+    ] {
+        assert_problem(post(raw).await, 400, needles).await;
+    }
+    // Over 1 MB: decoded in blocks on all cores; errors still name the segment in the whole
+    // array, and the answers are the segment-by-segment ones.
+    let one: Value = app
+        .post_json(
+            "/v1/step-error",
+            &json!({"tool_radius": 5.0, "segments": [vectors()[0].0]}),
+        )
+        .await
+        .json()
+        .await
+        .unwrap();
+    let many = vec![seg.as_str(); 3000].join(",\n");
+    let r = post(format!(r#"{{"segments": [{many}], "tool_radius": 5}}"#)).await;
+    assert_eq!(r.status(), 200);
+    let body: Value = r.json().await.unwrap();
+    let e = body["step_errors"].as_array().unwrap();
+    assert_eq!(e.len(), 3000);
+    assert!(e.iter().all(|v| *v == one["step_errors"][0]), "{}", e[0]);
+    let mut segs = vec![seg.clone(); 3000];
+    segs[2500] = seg.replace("\"cc\"", "\"cx\"");
+    let r = post(format!(
+        r#"{{"tool_radius": 5, "segments": [{}]}}"#,
+        segs.join(",")
+    ))
+    .await;
+    assert_problem(r, 400, &["segments[2500]: unknown or repeated field 'cx'"]).await;
+}
+
+/// A body without Content-Length (chunked) is cut off at the size limit with 413.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn exact_refuses_an_oversize_chunked_body() {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let app = spawn_app_with(|c| c.max_body_bytes = 4096).await;
+    let mut s = tokio::net::TcpStream::connect(app.addr.trim_start_matches("http://"))
+        .await
+        .unwrap();
+    let mut req = String::from(
+        "POST /v1/step-error HTTP/1.1\r\nHost: localhost\r\nContent-Type: application/json\r\n\
+         Transfer-Encoding: chunked\r\nConnection: close\r\n\r\n",
+    );
+    for _ in 0..4 {
+        let data = format!("{{\"segments\": [{}", " ".repeat(2000));
+        req.push_str(&format!("{:x}\r\n{data}\r\n", data.len()));
+    }
+    req.push_str("0\r\n\r\n");
+    s.write_all(req.as_bytes()).await.unwrap();
+    let mut answer = String::new();
+    s.read_to_string(&mut answer).await.unwrap();
+    assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
+    assert!(answer.contains("more than 4096 bytes"), "{answer}");
+}
 
 /// Samples of a stored grid surface: flat grid → every step error is 0.
 async fn samples_from_stored_grid(app: TestApp) {

@@ -3,13 +3,16 @@
 //! Also the one `From<geometry::Error>` and `From<nn::Error>` for `ApiError`.
 
 mod json;
+mod number;
+mod stream;
 
 use axum::Router;
-use axum::body::Bytes;
+use axum::body::{Body, Bytes};
 use axum::extract::{Path, State};
 use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
+use futures::StreamExt;
 use serde::{Deserialize, Serialize};
 use serde_json::{Value, json};
 
@@ -23,7 +26,7 @@ use crate::geometry::{
     grid_segments, height_surface_segments,
 };
 use crate::nn::{self, Activation, Init, Mlp, Regressor, TrainConfig, gather_rows, split_indices};
-pub use json::SegmentBatch;
+pub use json::{DecodeError, SegmentBatch, SegmentsBody, decode as decode_json};
 
 /// Model kind under which the network is stored per machine and surface.
 pub const MODEL_KIND: &str = "step_error_nn";
@@ -102,65 +105,90 @@ fn check_tool_radius(r: f64) -> ApiResult<()> {
     }
 }
 
-/// Decodes `{"tool_radius"?: mm, "segments": [...]}` without building a `Vec` per segment.
-pub fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<(Option<f64>, SegmentBatch)> {
-    if !is_json(headers) {
-        return Err(ApiError::unsupported_media_type(
+fn require_json(headers: &HeaderMap) -> ApiResult<()> {
+    if is_json(headers) {
+        Ok(())
+    } else {
+        Err(ApiError::unsupported_media_type(
             "send the body with Content-Type: application/json",
-        ));
+        ))
     }
+}
+
+/// Decodes `{"tool_radius"?: mm, "segments": [...]}` (see [`json`]: flat buffers, the large
+/// bodies on all cores) and checks the radius and that there are segments.
+pub fn decode_segments(headers: &HeaderMap, body: &[u8]) -> ApiResult<SegmentsBody> {
+    require_json(headers)?;
     if body.is_empty() {
-        return Err(ApiError::bad_request(
-            "the request body is empty; send {\"tool_radius\": mm, \"segments\": [...]}",
-        ));
+        return Err(empty_body());
     }
-    let req: json::SegmentsBody = serde_json::from_slice(body)
-        .map_err(|e| ApiError::bad_request(format!("invalid JSON body: {e}")))?;
+    let req = json::decode(body, 0).map_err(|e| ApiError::bad_request(e.0))?;
+    check_segments(req)
+}
+
+/// The checks after decoding: a radius in range if sent, at least one segment.
+fn check_segments(req: SegmentsBody) -> ApiResult<SegmentsBody> {
     if let Some(r) = req.tool_radius {
         check_tool_radius(r)?;
     }
-    if req.batch.is_empty() {
+    if req.is_empty() {
         return Err(ApiError::bad_request(
             "segments is empty: send at least one {\"cl\": [...], \"cc\": [...]}",
         ));
     }
-    Ok((req.tool_radius, req.batch))
+    Ok(req)
 }
 
-/// Exact step errors of a batch, split over the machine's cores.
-pub fn solve_batch(r: f64, batch: &SegmentBatch) -> Result<Vec<StepError>, geometry::Error> {
-    let n = batch.len();
+fn empty_body() -> ApiError {
+    ApiError::bad_request(
+        "the request body is empty; send {\"tool_radius\": mm, \"segments\": [...]}",
+    )
+}
+
+/// Exact step errors of the segments of `parts` (in order), split over the machine's cores.
+pub fn solve_batch(r: f64, parts: &[SegmentBatch]) -> Result<Vec<StepError>, geometry::Error> {
+    let n: usize = parts.iter().map(SegmentBatch::len).sum();
     let threads = std::thread::available_parallelism()
         .map(|t| t.get())
         .unwrap_or(1)
         .min(8);
     let per = n.div_ceil(threads).max(2048);
-    let parts: Vec<Result<Vec<StepError>, geometry::Error>> = std::thread::scope(|s| {
-        let hs: Vec<_> = (0..n)
-            .step_by(per)
-            .map(|from| {
-                s.spawn(move || {
-                    let mut solver = StepErrorSolver::default();
-                    (from..(from + per).min(n))
-                        .map(|i| {
-                            let (cl, cc) = batch.get(i);
-                            solver
-                                .solve(r, cl, cc)
-                                .map_err(|e| geometry::Error::InSegment {
-                                    index: i,
-                                    source: Box::new(e),
-                                })
-                        })
-                        .collect()
-                })
+    // Segments `from..to` of the whole batch, across the parts.
+    let solve = |from: usize, to: usize| {
+        let mut skip = from;
+        let segments = parts
+            .iter()
+            .flat_map(|p| {
+                let start = skip.min(p.len());
+                skip -= start;
+                (start..p.len()).map(move |i| p.get(i))
             })
+            .take(to - from);
+        StepErrorSolver::default()
+            .solve_batch(r, segments)
+            .map_err(|e| match e {
+                geometry::Error::InSegment { index, source } => geometry::Error::InSegment {
+                    index: from + index,
+                    source,
+                },
+                e => e,
+            })
+    };
+    let results: Vec<Result<Vec<StepError>, geometry::Error>> = std::thread::scope(|s| {
+        let handles: Vec<_> = (per..n)
+            .step_by(per)
+            .map(|from| s.spawn(move || solve(from, (from + per).min(n))))
             .collect();
-        hs.into_iter()
-            .map(|h| h.join().expect("step-error worker panicked"))
-            .collect()
+        let mut all = vec![solve(0, per.min(n))];
+        all.extend(
+            handles
+                .into_iter()
+                .map(|h| h.join().expect("step-error worker panicked")),
+        );
+        all
     });
     let mut out = Vec::with_capacity(n);
-    for p in parts {
+    for p in results {
         out.extend(p?);
     }
     Ok(out)
@@ -170,42 +198,116 @@ fn json_response(body: Vec<u8>) -> Response {
     ([(header::CONTENT_TYPE, "application/json")], body).into_response()
 }
 
-#[derive(Serialize)]
-struct ExactAnswer<'a> {
-    step_errors: &'a [f64],
-    /// Indices of segments whose CC curve has an inflection (the middle's convexity decided).
-    inflections: Vec<usize>,
-    tool_radius: f64,
-    unit: &'static str,
+/// Reads the body into blocks for [`stream::decode_blocks`] as it arrives (one copy of each
+/// chunk), refusing more than `max` bytes; returns the number of bytes read.
+async fn feed_body(
+    body: Body,
+    declared: Option<usize>,
+    max: usize,
+    tx: std::sync::mpsc::Sender<stream::Block>,
+) -> ApiResult<usize> {
+    let too_large = || {
+        ApiError::payload_too_large(format!(
+            "the request body has more than {max} bytes, the most this server accepts \
+             (see --max-body-bytes); split the segments over several requests"
+        ))
+    };
+    if declared.is_some_and(|d| d > max) {
+        return Err(too_large());
+    }
+    // About 32 blocks a body: the last block's parse is all that is left after the transfer.
+    let target = declared.map_or(4 << 20, |d| (d / 32).clamp(256 << 10, 8 << 20));
+    let mut cutter = stream::BlockCutter::new(target, tx);
+    let mut chunks = body.into_data_stream();
+    while let Some(chunk) = chunks.next().await {
+        let chunk = chunk.map_err(|e| {
+            ApiError::bad_request(format!("the request body could not be read: {e}"))
+        })?;
+        if cutter.total() + chunk.len() > max {
+            return Err(too_large());
+        }
+        cutter.push(&chunk);
+    }
+    let total = cutter.total();
+    cutter.finish();
+    Ok(total)
+}
+
+/// Appends `v` as JSON: shortest round-trip digits (ryu), `null` if not finite.
+fn push_f64(out: &mut Vec<u8>, buf: &mut ryu::Buffer, v: f64) {
+    if v.is_finite() {
+        out.extend_from_slice(buf.format_finite(v).as_bytes());
+    } else {
+        out.extend_from_slice(b"null");
+    }
+}
+
+/// `{"step_errors": [mm], "inflections": [index], "tool_radius": mm, "unit": "mm"}` written
+/// straight into the buffer.
+fn encode_exact(r: f64, errs: &[StepError]) -> Vec<u8> {
+    let mut out = Vec::with_capacity(errs.len() * 24 + 96);
+    let mut f = ryu::Buffer::new();
+    let mut n = itoa::Buffer::new();
+    out.extend_from_slice(b"{\"step_errors\":[");
+    for (i, e) in errs.iter().enumerate() {
+        if i > 0 {
+            out.push(b',');
+        }
+        push_f64(&mut out, &mut f, e.error_mm);
+    }
+    out.extend_from_slice(b"],\"inflections\":[");
+    let mut first = true;
+    for (i, e) in errs.iter().enumerate() {
+        if e.inflection {
+            if !first {
+                out.push(b',');
+            }
+            first = false;
+            out.extend_from_slice(n.format(i).as_bytes());
+        }
+    }
+    out.extend_from_slice(b"],\"tool_radius\":");
+    push_f64(&mut out, &mut f, r);
+    out.extend_from_slice(b",\"unit\":\"mm\"}");
+    out
 }
 
 async fn exact(
     State(state): State<AppState>,
     headers: HeaderMap,
-    body: Bytes,
+    body: Body,
 ) -> ApiResult<Response> {
-    let out = state
-        .jobs
-        .run(move || -> ApiResult<Vec<u8>> {
-            let (r, batch) = decode_segments(&headers, &body)?;
-            let r = r.ok_or_else(|| ApiError::bad_request("tool_radius (mm) is required"))?;
-            let errs = solve_batch(r, &batch)?;
-            let e: Vec<f64> = errs.iter().map(|e| e.error_mm).collect();
-            let inflections = errs
-                .iter()
-                .enumerate()
-                .filter(|(_, e)| e.inflection)
-                .map(|(i, _)| i)
-                .collect();
-            serde_json::to_vec(&ExactAnswer {
-                step_errors: &e,
-                inflections,
-                tool_radius: r,
-                unit: "mm",
-            })
-            .map_err(ApiError::internal)
-        })
-        .await??;
+    require_json(&headers)?;
+    let declared = headers
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.parse::<usize>().ok());
+    // Small bodies: one thread (no helper to start for a few segments).
+    let threads = if declared.is_some_and(|d| d < 1 << 20) {
+        1
+    } else {
+        0
+    };
+    let (tx, rx) = std::sync::mpsc::channel();
+    // Decoding runs on the worker pool while this task receives the body.
+    let work = state.jobs.run(move || -> ApiResult<Option<Vec<u8>>> {
+        let Some(req) =
+            stream::decode_blocks(rx, threads).map_err(|e| ApiError::bad_request(e.0))?
+        else {
+            return Ok(None);
+        };
+        let req = check_segments(req)?;
+        let r = req
+            .tool_radius
+            .ok_or_else(|| ApiError::bad_request("tool_radius (mm) is required"))?;
+        let errs = solve_batch(r, &req.parts)?;
+        Ok(Some(encode_exact(r, &errs)))
+    });
+    let (out, received) = tokio::join!(work, feed_body(body, declared, state.max_body_bytes, tx));
+    if received? == 0 {
+        return Err(empty_body());
+    }
+    let out = out??.ok_or_else(|| ApiError::internal("the body was read but not decoded"))?;
     Ok(json_response(out))
 }
 
@@ -808,10 +910,11 @@ async fn predict(
     let out = state
         .jobs
         .run(move || -> ApiResult<Vec<u8>> {
-            let (r, batch) = decode_segments(&headers, &body)?;
-            let r = r.unwrap_or(meta.tool_radius_mm);
+            let req = decode_segments(&headers, &body)?;
+            let r = req.tool_radius.unwrap_or(meta.tool_radius_mm);
+            let batch = SegmentBatch::concat(req.parts);
             let f = meta.features;
-            let (x, convex) = f.matrix(r, (0..batch.len()).map(|i| batch.get(i)))?;
+            let (x, convex) = f.matrix(r, batch.iter())?;
             let y = reg.predict_parallel(&x, 0)?;
             let e: Vec<f64> = f
                 .combine(&y, &convex)

@@ -28,12 +28,14 @@ pub struct CubicSpline3 {
     p: Vec<[f64; 3]>,
     /// Second derivatives d2Q/dt2 at the knots.
     d2: Vec<[f64; 3]>,
-    // Thomas-algorithm factors (for `factored_m` uniform knots when non-zero).
+    // Thomas-algorithm work space (general knots: `c`, `lower`, `diag_inv`; uniform knots: the
+    // factors `inv_denom`, which depend on the row only).
     c: Vec<f64>,
     lower: Vec<f64>,
+    diag_inv: Vec<f64>,
     inv_denom: Vec<f64>,
+    /// m when the knots are uniform (then `t` is kept between fits), else 0.
     factored_m: usize,
-    inv_h: Vec<f64>,
 }
 
 impl CubicSpline3 {
@@ -66,13 +68,20 @@ impl CubicSpline3 {
         }
         self.p.clear();
         self.p.extend_from_slice(points);
-        self.t.clear();
+        // Every entry is overwritten by the solve.
+        self.d2.resize(m, [0.0; 3]);
         match param {
+            // Uniform knots depend on m only: kept from the previous fit with the same m.
+            Parameterization::Uniform if self.factored_m == m => {}
             Parameterization::Uniform => {
+                self.t.clear();
                 let inv = 1.0 / (m - 1) as f64;
                 self.t.extend((0..m).map(|k| k as f64 * inv));
+                self.factored_m = m;
             }
             Parameterization::ChordLength => {
+                self.factored_m = 0;
+                self.t.clear();
                 let mut acc = 0.0;
                 self.t.push(0.0);
                 for k in 1..m {
@@ -88,8 +97,94 @@ impl CubicSpline3 {
                 self.t[m - 1] = 1.0;
             }
         }
-        self.d2.clear();
-        self.d2.resize(m, [0.0; 3]);
+        if matches!(param, Parameterization::Uniform) && m >= 4 {
+            self.solve_uniform();
+        } else {
+            self.solve_general();
+        }
+        Ok(())
+    }
+
+    /// The system for uniform knots (h = 1/(m-1)) in `S_k = h^2 M_k / 6`: the not-a-knot rows
+    /// decouple (`S_1 = Δ²p_1 / 6`, `S_{m-2} = Δ²p_{m-2} / 6`, `Δ²p_k = p_{k+1} - 2 p_k + p_{k-1}`)
+    /// and the q = m - 4 rows between are `S_{k-1} + 4 S_k + S_{k+1} = Δ²p_k`. They are solved
+    /// from both ends at once (a twisted Thomas factorisation: two elimination chains of q/2
+    /// rows meeting at the middle row, then two substitution chains outwards), which halves the
+    /// dependency chains of the plain sweep. The elimination factors `f_0 = 1/4`,
+    /// `f_i = 1/(4 - f_{i-1})` do not depend on m (kept, grown on demand).
+    /// Then `S_0 = 2 S_1 - S_2`, `S_{m-1} = 2 S_{m-2} - S_{m-3}`, `M = 6 S / h^2`.
+    /// Same solution as [`CubicSpline3::solve_general`] (a unit test checks), no divisions.
+    fn solve_uniform(&mut self) {
+        let m = self.p.len();
+        let q = m - 4; // unknowns S_2..S_{m-3}, rows i = k - 2
+        if self.inv_denom.len() < q {
+            self.inv_denom.clear();
+            let mut f = 0.0;
+            self.inv_denom.extend((0..q).map(|_| {
+                f = 1.0 / (4.0 - f);
+                f
+            }));
+        }
+        let p = &self.p[..m];
+        let d2 = &mut self.d2[..m];
+        let f = &self.inv_denom[..q];
+        let dd = |w: &[[f64; 3]]| -> [f64; 3] {
+            std::array::from_fn(|d| w[2][d] - 2.0 * w[1][d] + w[0][d])
+        };
+        let sixth = 1.0 / 6.0;
+        let s1 = dd(&p[0..3]).map(|v| v * sixth);
+        let sl = dd(&p[m - 3..m]).map(|v| v * sixth);
+        if q > 0 {
+            // Rows 0..h-1 eliminated downwards (x_i + f_i x_{i+1} = y_i), rows q-1..h+1
+            // upwards (x_i + f_{q-1-i} x_{i-1} = z_i), the known S_1 / S_{m-2} entering as
+            // y_{-1} / z_q; y, z stored in the rows' own slots d2[i + 2].
+            let h = q / 2;
+            let rows = &mut d2[2..m - 2];
+            let rhs = &p[1..m - 1]; // row i: Δ² over rhs[i..i + 3]
+            let mut y = s1;
+            for (i, (out, &fi)) in rows[..h].iter_mut().zip(f).enumerate() {
+                let r = dd(&rhs[i..i + 3]);
+                y = std::array::from_fn(|d| (r[d] - y[d]) * fi);
+                *out = y;
+            }
+            let mut z = sl;
+            for (i, (out, &fi)) in rows[h + 1..].iter_mut().rev().zip(f).enumerate() {
+                let r = dd(&rhs[q - 1 - i..q + 2 - i]);
+                z = std::array::from_fn(|d| (r[d] - z[d]) * fi);
+                *out = z;
+            }
+            let f_top = if h > 0 { f[h - 1] } else { 0.0 };
+            let f_bot = if q - 1 - h > 0 { f[q - 2 - h] } else { 0.0 };
+            let inv_mid = 1.0 / (4.0 - f_top - f_bot);
+            let r = dd(&rhs[h..h + 3]);
+            let xm: [f64; 3] = std::array::from_fn(|d| (r[d] - y[d] - z[d]) * inv_mid);
+            rows[h] = xm;
+            let mut x = xm;
+            for (out, &fi) in rows[..h].iter_mut().rev().zip(f[..h].iter().rev()) {
+                x = std::array::from_fn(|d| out[d] - fi * x[d]);
+                *out = x;
+            }
+            let mut x = xm;
+            let nb = q - 1 - h;
+            for (out, &fi) in rows[h + 1..].iter_mut().zip(f[..nb].iter().rev()) {
+                x = std::array::from_fn(|d| out[d] - fi * x[d]);
+                *out = x;
+            }
+        }
+        d2[1] = s1;
+        d2[m - 2] = sl;
+        let scale = 6.0 * ((m - 1) * (m - 1)) as f64;
+        let (s2, s3) = (d2[2], d2[m - 3]);
+        d2[0] = std::array::from_fn(|d| 2.0 * s1[d] - s2[d]);
+        d2[m - 1] = std::array::from_fn(|d| 2.0 * sl[d] - s3[d]);
+        for v in d2.iter_mut() {
+            *v = v.map(|x| x * scale);
+        }
+    }
+
+    /// The system for any knots (see [`CubicSpline3::fit`]), by the Thomas algorithm.
+    fn solve_general(&mut self) {
+        let m = self.p.len();
         let (t, p) = (&self.t, &self.p);
         let h = |k: usize| t[k + 1] - t[k];
         if m == 3 {
@@ -100,56 +195,43 @@ impl CubicSpline3 {
                     self.d2[k][d] = v;
                 }
             }
-            return Ok(());
+            return;
         }
-        // Unknowns M_1..M_{m-2}: n = m - 2 rows; row i is knot i + 1. The Thomas factors
-        // depend on the knots only, so for uniform knots they are computed once per m.
+        // Unknowns M_1..M_{m-2}: n = m - 2 rows; row i is knot i + 1.
         let n = m - 2;
         let (h0, h1) = (h(0), h(1));
         let (hl, hl1) = (h(m - 2), h(m - 3)); // last and second-to-last intervals
-        let cached = matches!(param, Parameterization::Uniform) && self.factored_m == m;
-        if !cached {
-            self.c.clear();
-            self.lower.clear();
-            self.inv_denom.clear();
-            for i in 0..n {
-                let k = i + 1;
-                let (hk1, hk) = (h(k - 1), h(k));
-                let mut lower = hk1;
-                let mut diag = 2.0 * (hk1 + hk);
-                let mut upper = hk;
-                if i == 0 {
-                    diag += h0 + h0 * h0 / h1;
-                    upper -= h0 * h0 / h1;
-                    lower = 0.0;
-                }
-                if i == n - 1 {
-                    diag += hl + hl * hl / hl1;
-                    lower -= hl * hl / hl1;
-                    upper = 0.0;
-                }
-                let c_prev = if i == 0 { 0.0 } else { self.c[i - 1] };
-                let inv = 1.0 / (diag - lower * c_prev);
-                self.c.push(upper * inv);
-                self.lower.push(lower);
-                self.inv_denom.push(inv);
-            }
-            self.factored_m = if matches!(param, Parameterization::Uniform) {
-                m
-            } else {
-                0
-            };
-        }
-        self.inv_h.clear();
-        self.inv_h.extend((0..m - 1).map(|k| 1.0 / h(k)));
-        let ih = &self.inv_h;
-        let mut prev = [0.0; 3];
-        let mut slope_prev: [f64; 3] = std::array::from_fn(|d| (p[1][d] - p[0][d]) * ih[0]);
+        self.c.clear();
+        self.lower.clear();
+        self.diag_inv.clear();
         for i in 0..n {
             let k = i + 1;
-            let (lower, inv) = (self.lower[i], self.inv_denom[i]);
+            let (hk1, hk) = (h(k - 1), h(k));
+            let mut lower = hk1;
+            let mut diag = 2.0 * (hk1 + hk);
+            let mut upper = hk;
+            if i == 0 {
+                diag += h0 + h0 * h0 / h1;
+                upper -= h0 * h0 / h1;
+                lower = 0.0;
+            }
+            if i == n - 1 {
+                diag += hl + hl * hl / hl1;
+                lower -= hl * hl / hl1;
+                upper = 0.0;
+            }
+            let c_prev = if i == 0 { 0.0 } else { self.c[i - 1] };
+            let inv = 1.0 / (diag - lower * c_prev);
+            self.c.push(upper * inv);
+            self.lower.push(lower);
+            self.diag_inv.push(inv);
+        }
+        let mut prev = [0.0; 3];
+        let mut slope_prev: [f64; 3] = std::array::from_fn(|d| (p[1][d] - p[0][d]) / h(0));
+        for (i, (&lower, &inv)) in self.lower.iter().zip(&self.diag_inv).enumerate() {
+            let k = i + 1;
             for d in 0..3 {
-                let slope = (p[k + 1][d] - p[k][d]) * ih[k];
+                let slope = (p[k + 1][d] - p[k][d]) / h(k);
                 let r = 6.0 * (slope - slope_prev[d]);
                 slope_prev[d] = slope;
                 prev[d] = (r - lower * prev[d]) * inv;
@@ -168,7 +250,6 @@ impl CubicSpline3 {
             let (a, b) = (self.d2[m - 2][d], self.d2[m - 3][d]);
             self.d2[m - 1][d] = a * (1.0 + hl / hl1) - (hl / hl1) * b;
         }
-        Ok(())
     }
 
     /// Knot parameters `t_k` in [0, 1].
@@ -243,6 +324,28 @@ impl CubicSpline3 {
     pub fn knot_d2(&self) -> &[[f64; 3]] {
         &self.d2
     }
+
+    /// The cubic on interval `k` in its local parameter: `Q(t) = c0 + c1 b + c2 b^2 + c3 b^3`
+    /// with `b = (t - t_k) / h_k` in [0, 1], `h_k = t_{k+1} - t_k` (mm).
+    ///
+    /// From the knot form `Q = a p_k + b p_{k+1} + h_k^2/6 ((a^3 - a) M_k + (b^3 - b) M_{k+1})`,
+    /// `a = 1 - b`: with `m_j = h_k^2 M_j / 6`, `c0 = p_k`, `c1 = p_{k+1} - p_k - 2 m_k - m_{k+1}`,
+    /// `c2 = 3 m_k`, `c3 = m_{k+1} - m_k`. Panics when `k + 1` is not a knot.
+    #[inline]
+    pub fn piece(&self, k: usize) -> [[f64; 3]; 4] {
+        let h = self.t[k + 1] - self.t[k];
+        let h26 = h * h / 6.0;
+        let (p0, p1, d0, d1) = (self.p[k], self.p[k + 1], self.d2[k], self.d2[k + 1]);
+        let mut c = [[0.0; 3]; 4];
+        for d in 0..3 {
+            let (m0, m1) = (d0[d] * h26, d1[d] * h26);
+            c[0][d] = p0[d];
+            c[1][d] = p1[d] - p0[d] - 2.0 * m0 - m1;
+            c[2][d] = 3.0 * m0;
+            c[3][d] = m1 - m0;
+        }
+        c
+    }
 }
 
 #[cfg(test)]
@@ -296,6 +399,41 @@ mod tests {
         for (k, &t) in sp.knots().iter().enumerate() {
             let q = sp.eval(t);
             assert!((0..3).all(|d| (q[d] - pts[k][d]).abs() < 1e-12));
+        }
+    }
+
+    #[test]
+    fn uniform_fast_path_matches_the_general_solve() {
+        // One spline refitted through sizes in a mixed order (cached knots and factors), each
+        // compared with the general Thomas solve on the same knots.
+        let mut sp = CubicSpline3::new();
+        for m in [20usize, 5, 33, 4, 6, 7, 20, 8] {
+            let pts: Vec<[f64; 3]> = (0..m)
+                .map(|k| {
+                    let s = k as f64 * 0.37;
+                    [3.0 * s.sin(), (1.3 * s).cos(), 0.1 * s * s - s]
+                })
+                .collect();
+            sp.fit(&pts, Parameterization::Uniform).unwrap();
+            let mut general = sp.clone();
+            general.solve_general();
+            let scale = general
+                .knot_d2()
+                .iter()
+                .flatten()
+                .fold(0.0f64, |a, b| a.max(b.abs()));
+            for (k, (a, b)) in sp.knot_d2().iter().zip(general.knot_d2()).enumerate() {
+                for d in 0..3 {
+                    assert!(
+                        (a[d] - b[d]).abs() <= 1e-12 * scale,
+                        "m={m} k={k} d={d}: {} vs {}",
+                        a[d],
+                        b[d]
+                    );
+                }
+            }
+            assert_eq!(sp.knots(), general.knots());
+            assert!((sp.knots()[m - 1] - 1.0).abs() < 1e-15 && sp.knots().len() == m);
         }
     }
 

@@ -231,7 +231,7 @@ pub fn coarse_to_fine(
         ..Default::default()
     };
     if params.refine {
-        let (h, modes) = narrow_band_part(
+        let (h, modes, smoothed) = narrow_band_part(
             x,
             &v.modes,
             &v.omega,
@@ -240,8 +240,13 @@ pub fn coarse_to_fine(
             d,
             params.lambda,
         );
-        let rest: Vec<f64> = x.iter().zip(&h).map(|(a, b)| a - b).collect();
-        let s = whittaker(&rest, d, params.lambda)?;
+        let s = match smoothed {
+            Some(s) => s,
+            None => {
+                let rest: Vec<f64> = x.iter().zip(&h).map(|(a, b)| a - b).collect();
+                whittaker(&rest, d, params.lambda)?
+            }
+        };
         out.systematic = s.signal.iter().zip(&h).map(|(a, b)| a + b).collect();
         out.refine = Some(s);
         out.narrow_band_modes = modes;
@@ -259,8 +264,9 @@ pub fn coarse_to_fine(
 /// Stage 5's narrow-band part H: strong VMD modes that stand clearly above the noise their own Wiener filter
 /// passes (energy > 4·n·σ̂²·mean_b W_k(b)²) and lie above the cut-off of the smoother fitted
 /// without them. H is used only if it lowers Mallows' Cp = ‖x − est‖² + 2σ̂²·df against the
-/// smoother alone (df: the smoother's trace plus Σ_b W_k(b) per mode). Returns H and the
-/// mode indices (empty when the smoother alone is better).
+/// smoother alone (df: the smoother's trace plus Σ_b W_k(b) per mode). Returns H, the
+/// mode indices (empty when the smoother alone is better) and, when this comparison ran,
+/// the smoother of x − H it computed (so the caller need not smooth again).
 pub fn narrow_band_part(
     x: &[f64],
     modes: &[Vec<f64>],
@@ -269,7 +275,7 @@ pub fn narrow_band_part(
     alpha: f64,
     d: usize,
     lambda: Option<f64>,
-) -> (Vec<f64>, Vec<usize>) {
+) -> (Vec<f64>, Vec<usize>, Option<Smoothed>) {
     let n = x.len();
     let sigma = noise_sigma(x);
     let filter = |k: usize| {
@@ -285,7 +291,7 @@ pub fn narrow_band_part(
             strong[k] && energy > 4.0 * n as f64 * sigma * sigma * frac
         })
         .collect();
-    let none = (vec![0.0; n], Vec::new());
+    let none = (vec![0.0; n], Vec::new(), None);
     if candidates.is_empty() {
         return none;
     }
@@ -309,7 +315,7 @@ pub fn narrow_band_part(
         return none;
     }
     let h = sum_of(&picked);
-    let cp = |h: &[f64], extra_df: f64| -> Option<f64> {
+    let cp = |h: &[f64], extra_df: f64| -> Option<(f64, Smoothed)> {
         let rest: Vec<f64> = x.iter().zip(h).map(|(a, b)| a - b).collect();
         let s = whittaker(&rest, d, lambda).ok()?;
         let rss: f64 = rest
@@ -317,11 +323,19 @@ pub fn narrow_band_part(
             .zip(&s.signal)
             .map(|(a, b)| (a - b).powi(2))
             .sum();
-        Some(rss + 2.0 * sigma * sigma * (s.edf + extra_df))
+        Some((rss + 2.0 * sigma * sigma * (s.edf + extra_df), s))
     };
     let df_h: f64 = picked.iter().map(|&k| filter(k).sum::<f64>()).sum();
-    match (cp(&vec![0.0; n], 0.0), cp(&h, df_h)) {
-        (Some(a), Some(b)) if b < a => (h, picked),
+    // The two smoothers are independent: one thread each.
+    let zero = vec![0.0; n];
+    let (without, with) = std::thread::scope(|s| {
+        let a = s.spawn(|| cp(&zero, 0.0));
+        let b = cp(&h, df_h);
+        (a.join().expect("smoother thread panicked"), b)
+    });
+    match (without, with) {
+        (Some((a, _)), Some((b, s))) if b < a => (h, picked, Some(s)),
+        (Some((_, s)), _) => (vec![0.0; n], Vec::new(), Some(s)),
         _ => none,
     }
 }

@@ -143,7 +143,7 @@ pub fn decompose(
             if let (true, Some((nu, nv))) = (two_d, grid) {
                 // Refinement on the field: narrow-band modes found along the serpentine
                 // path, the rest smoothed in 2-D.
-                let (h, picked) = narrow_band_part(
+                let (h, picked, _) = narrow_band_part(
                     &flat,
                     &r.vmd_modes,
                     &r.vmd_omega,

@@ -142,13 +142,18 @@ fn left_mirror(x0: f64, maxs: &[(f64, f64)], mins: &[(f64, f64)], k: usize) -> (
 
 /// Upper and lower spline envelopes at every sample, with mirrored extrema at both ends, and
 /// how many envelope knots have the wrong sign for an IMF (maxima ≤ 0, minima ≥ 0).
-fn envelopes(h: &[f64], k: usize) -> Option<(Vec<f64>, Vec<f64>, usize)> {
+/// `maxs`, `mins`: the extrema of `h` ([`extrema`]).
+fn envelopes(
+    h: &[f64],
+    maxs: &[(f64, f64)],
+    mins: &[(f64, f64)],
+    k: usize,
+) -> Option<(Vec<f64>, Vec<f64>, usize)> {
     let n = h.len();
-    let (maxs, mins) = extrema(h);
     if maxs.len() < 2 || mins.len() < 2 {
         return None;
     }
-    let (lmax, lmin) = left_mirror(h[0], &maxs, &mins, k);
+    let (lmax, lmin) = left_mirror(h[0], maxs, mins, k);
     // The right end is the left end of the reversed signal.
     let rev = |v: &[(f64, f64)]| -> Vec<(f64, f64)> {
         v.iter()
@@ -156,12 +161,12 @@ fn envelopes(h: &[f64], k: usize) -> Option<(Vec<f64>, Vec<f64>, usize)> {
             .map(|&(t, y)| ((n - 1) as f64 - t, y))
             .collect()
     };
-    let (rmax_r, rmin_r) = left_mirror(h[n - 1], &rev(&maxs), &rev(&mins), k);
+    let (rmax_r, rmin_r) = left_mirror(h[n - 1], &rev(maxs), &rev(mins), k);
     let mut upper: Vec<(f64, f64)> = lmax;
-    upper.extend_from_slice(&maxs);
+    upper.extend_from_slice(maxs);
     upper.extend(rev(&rmax_r));
     let mut lower: Vec<(f64, f64)> = lmin;
-    lower.extend_from_slice(&mins);
+    lower.extend_from_slice(mins);
     lower.extend(rev(&rmin_r));
     let build = |pts: &[(f64, f64)]| -> Option<Vec<f64>> {
         let xs: Vec<f64> = pts.iter().map(|p| p.0).collect();
@@ -205,8 +210,11 @@ pub fn emd(x: &[f64], params: &EmdParams) -> Result<EmdResult, Error> {
         let mut h = residue.clone();
         let mut used = 0;
         let mut ok = false;
+        // Extrema of the current h (each sift's are reused by the next one's envelopes).
+        let (mut hmax, mut hmin) = (maxs, mins);
         for it in 0..params.max_sift {
-            let Some((up, lo, wrong_signs)) = envelopes(&h, params.mirrored_extrema) else {
+            let Some((up, lo, wrong_signs)) = envelopes(&h, &hmax, &hmin, params.mirrored_extrema)
+            else {
                 break;
             };
             ok = true;
@@ -222,7 +230,8 @@ pub fn emd(x: &[f64], params: &EmdParams) -> Result<EmdResult, Error> {
             h = new;
             used = it + 1;
             let sd = if den > 0.0 { num / den } else { 0.0 };
-            let (mx, mn) = extrema(&h);
+            (hmax, hmin) = extrema(&h);
+            let (mx, mn) = (&hmax, &hmin);
             // IMF definition (paper 002 §2.3.2): maxima above and minima below zero (checked
             // on the envelope knots of the iterate that was sifted, end points included, as
             // PyEMD does), and as many extrema as zero crossings, give or take one.

@@ -117,27 +117,37 @@ impl CubicSpline {
         (v, dv)
     }
 
-    /// Values at the integer sample positions 0..n (one pass, no search per sample).
+    /// Values at the integer sample positions 0..n (one pass, no search per sample): per
+    /// segment the cubic in power form of s = (t − x_i)/h, evaluated by Horner.
     pub fn eval_samples(&self, n: usize) -> Vec<f64> {
         let mut out = Vec::with_capacity(n);
-        let mut i = self.segment(0.0);
-        for k in 0..n {
-            let t = k as f64;
-            while i + 2 < self.x.len() && t >= self.x[i + 1] {
-                i += 1;
+        let nk = self.x.len();
+        let mut k = 0usize;
+        for i in 0..nk - 1 {
+            // Segment i serves t < x[i+1] (the first also everything left of x[0], the
+            // last everything from x[n-2] on).
+            let stop = if i + 2 == nk {
+                n
+            } else {
+                // First integer t with t >= x[i+1].
+                let e = self.x[i + 1].ceil();
+                if e <= 0.0 { 0 } else { (e as usize).min(n) }
+            };
+            if stop <= k {
+                continue;
             }
             let h = self.x[i + 1] - self.x[i];
-            let s = (t - self.x[i]) / h;
+            let inv_h = 1.0 / h;
             let (y0, y1) = (self.y[i], self.y[i + 1]);
             let (d0, d1) = (self.slopes[i] * h, self.slopes[i + 1] * h);
-            let s2 = s * s;
-            let s3 = s2 * s;
-            out.push(
-                (2.0 * s3 - 3.0 * s2 + 1.0) * y0
-                    + (s3 - 2.0 * s2 + s) * d0
-                    + (-2.0 * s3 + 3.0 * s2) * y1
-                    + (s3 - s2) * d1,
-            );
+            let c2 = -3.0 * y0 - 2.0 * d0 + 3.0 * y1 - d1;
+            let c3 = 2.0 * y0 + d0 - 2.0 * y1 + d1;
+            let x0 = self.x[i];
+            for t in k..stop {
+                let s = (t as f64 - x0) * inv_h;
+                out.push(y0 + s * (d0 + s * (c2 + s * c3)));
+            }
+            k = stop;
         }
         out
     }

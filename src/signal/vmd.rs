@@ -27,8 +27,10 @@ pub struct VmdParams {
     pub dc: bool,
     /// ω initialisation: 0 = all zero, 1 = uniform ω_k = 0.5 k / K. Default 1.
     pub init: u8,
-    /// Convergence tolerance on Σ_k ‖Δû_k‖²/T (absolute, in signal units²). Default 1e-7.
+    /// Convergence tolerance ε of the stopping rule chosen by `convergence`. Default 1e-7.
     pub tol: f64,
+    /// Stopping rule: `absolute` (default, as vmdpy) or `relative` (see [`Convergence`]).
+    pub convergence: Convergence,
     /// Iteration cap (vmdpy's Niter). Default 500.
     pub max_iter: usize,
 }
@@ -42,11 +44,27 @@ impl Default for VmdParams {
             dc: false,
             init: 1,
             tol: 1e-7,
+            convergence: Convergence::Absolute,
             max_iter: 500,
         }
     }
 }
 
+/// VMD stopping rule, with û_k the one-sided unnormalised DFT of mode k of the mirrored
+/// signal (length T = 2n) and n the iteration.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
+#[serde(rename_all = "snake_case")]
+pub enum Convergence {
+    /// Σ_k ‖û_k^{n+1} − û_k^n‖² / ‖û_k^n‖² < tol: the criterion as published
+    /// (Dragomiretskiy & Zosso 2014, Algorithm 2; paper 002 eq. 7). Dimensionless, so the
+    /// same tol means the same precision at every length and amplitude.
+    Relative,
+    /// Σ_k ‖û_k^{n+1} − û_k^n‖² / T < tol (signal units²): what Zosso's MATLAB code and vmdpy
+    /// test. With unnormalised transforms it grows ∝ T, so it tightens with the length and
+    /// long signals stop at `max_iter` (250,000 samples: 499 iterations at tol 1e-7).
+    #[default]
+    Absolute,
+}
 impl VmdParams {
     /// Checks ranges; the sentence names the parameter.
     pub fn validate(&self) -> Result<(), Error> {
@@ -83,143 +101,226 @@ impl VmdParams {
 /// Spectra at least this long (bins) are swept by two threads.
 const PARALLEL_MIN_BINS: usize = 32_768;
 
+/// Spectra at least this long (bins; signals of at least this many samples) are iterated in
+/// f32 (see [`vmd`]).
+pub const F32_MIN_BINS: usize = 65_536;
+
 /// Bins per cache block of the sweep.
 const BLOCK: usize = 512;
 
-/// One ADMM iteration over all bins: updates every mode in place, adds Σν|û|² and Σ|û|² per
-/// mode to `num`/`den`, returns Σ|Δû|². Splits the bins over `threads` threads.
+/// Per-mode sums of one sweep: Σν|û_k|², Σ|û_k|², Σ|Δû_k|².
+struct Sums {
+    num: Vec<f64>,
+    den: Vec<f64>,
+    dif: Vec<f64>,
+}
+
+impl Sums {
+    fn new(k: usize) -> Self {
+        Self {
+            num: vec![0.0; k],
+            den: vec![0.0; k],
+            dif: vec![0.0; k],
+        }
+    }
+
+    fn add(&mut self, o: &Sums) {
+        for i in 0..self.num.len() {
+            self.num[i] += o.num[i];
+            self.den[i] += o.den[i];
+            self.dif[i] += o.dif[i];
+        }
+    }
+}
+
+/// Number type of the iteration: f64, or f32 for long spectra.
+trait Real: Copy + Default + Send + Sync {
+    fn to64(self) -> f64;
+    fn from64(v: f64) -> Self;
+}
+
+impl Real for f64 {
+    #[inline(always)]
+    fn to64(self) -> f64 {
+        self
+    }
+    #[inline(always)]
+    fn from64(v: f64) -> Self {
+        v
+    }
+}
+
+impl Real for f32 {
+    #[inline(always)]
+    fn to64(self) -> f64 {
+        self as f64
+    }
+    #[inline(always)]
+    fn from64(v: f64) -> Self {
+        v as f32
+    }
+}
+
+/// A sweep over one contiguous bin range: coefficients c_k, |f̂|², target (1 − l/2, `None`
+/// = 1), bin frequencies, ω, α; adds to the sums.
+type Kernel<C> = fn(&mut [&mut [C]], &[C], Option<&[C]>, &[C], &[f64], f64, &mut Sums);
+
+/// One ADMM iteration over all bins in the coefficient form of [`vmd`] (û_k = c_k·f̂):
+/// updates every c_k in place and returns the per-mode [`Sums`]. Splits the bins over
+/// `threads` threads.
 #[allow(clippy::too_many_arguments)]
-fn sweep(
-    u_re: &mut [Vec<f64>],
-    u_im: &mut [Vec<f64>],
-    t_re: &[f64],
-    t_im: &[f64],
-    freqs: &[f64],
+fn sweep<C: Real>(
+    kernel: Kernel<C>,
+    c: &mut [Vec<C>],
+    power: &[C],
+    target: Option<&[C]>,
+    freqs: &[C],
     omega: &[f64],
     alpha: f64,
-    num: &mut [f64],
-    den: &mut [f64],
     threads: usize,
-) -> f64 {
-    let m = t_re.len();
-    if threads <= 1 {
-        let mut re: Vec<&mut [f64]> = u_re.iter_mut().map(|v| v.as_mut_slice()).collect();
-        let mut im: Vec<&mut [f64]> = u_im.iter_mut().map(|v| v.as_mut_slice()).collect();
-        return sweep_range(&mut re, &mut im, t_re, t_im, freqs, omega, alpha, num, den);
-    }
-    let mid = m / 2;
-    let (mut re_a, mut re_b): (Vec<&mut [f64]>, Vec<&mut [f64]>) =
-        u_re.iter_mut().map(|v| v.split_at_mut(mid)).unzip();
-    let (mut im_a, mut im_b): (Vec<&mut [f64]>, Vec<&mut [f64]>) =
-        u_im.iter_mut().map(|v| v.split_at_mut(mid)).unzip();
+) -> Sums {
+    let m = power.len();
     let k = omega.len();
-    let (mut num_b, mut den_b) = (vec![0.0; k], vec![0.0; k]);
-    let diff_b = std::thread::scope(|s| {
+    let mut sums = Sums::new(k);
+    if threads <= 1 {
+        let mut cs: Vec<&mut [C]> = c.iter_mut().map(|v| v.as_mut_slice()).collect();
+        kernel(&mut cs, power, target, freqs, omega, alpha, &mut sums);
+        return sums;
+    }
+    let mid = m / 2 / 8 * 8;
+    let (mut ca, mut cb): (Vec<&mut [C]>, Vec<&mut [C]>) =
+        c.iter_mut().map(|v| v.split_at_mut(mid)).unzip();
+    let mut sums_b = Sums::new(k);
+    let (ta, tb) = match target {
+        Some(t) => (Some(&t[..mid]), Some(&t[mid..])),
+        None => (None, None),
+    };
+    std::thread::scope(|s| {
         let handle = s.spawn(|| {
-            sweep_range(
-                &mut re_b,
-                &mut im_b,
-                &t_re[mid..],
-                &t_im[mid..],
+            kernel(
+                &mut cb,
+                &power[mid..],
+                tb,
                 &freqs[mid..],
                 omega,
                 alpha,
-                &mut num_b,
-                &mut den_b,
+                &mut sums_b,
             )
         });
-        let diff_a = sweep_range(
-            &mut re_a,
-            &mut im_a,
-            &t_re[..mid],
-            &t_im[..mid],
+        kernel(
+            &mut ca,
+            &power[..mid],
+            ta,
             &freqs[..mid],
             omega,
             alpha,
-            num,
-            den,
+            &mut sums,
         );
-        diff_a + handle.join().expect("VMD sweep thread panicked")
+        handle.join().expect("VMD sweep thread panicked");
     });
-    for i in 0..k {
-        num[i] += num_b[i];
-        den[i] += den_b[i];
-    }
-    diff_b
+    sums.add(&sums_b);
+    sums
 }
 
-/// [`sweep`] on one contiguous bin range, dispatching to an AVX2+FMA build when available.
-#[allow(clippy::too_many_arguments)]
-fn sweep_range(
-    u_re: &mut [&mut [f64]],
-    u_im: &mut [&mut [f64]],
-    t_re: &[f64],
-    t_im: &[f64],
+/// The f64 kernel: AVX2+FMA when available, else portable.
+fn kernel_f64(
+    c: &mut [&mut [f64]],
+    power: &[f64],
+    target: Option<&[f64]>,
     freqs: &[f64],
     omega: &[f64],
     alpha: f64,
-    num: &mut [f64],
-    den: &mut [f64],
-) -> f64 {
+    sums: &mut Sums,
+) {
     #[cfg(target_arch = "x86_64")]
     {
         if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
             // SAFETY: the CPU supports the features the function is compiled for.
-            return unsafe { sweep_avx2(u_re, u_im, t_re, t_im, freqs, omega, alpha, num, den) };
+            unsafe { sweep_avx2_f64(c, power, target, freqs, omega, alpha, sums) };
+            return;
         }
     }
-    sweep_generic(u_re, u_im, t_re, t_im, freqs, omega, alpha, num, den)
+    sweep_generic(c, power, target, freqs, omega, alpha, sums)
 }
 
-/// The sweep kernel in AVX2+FMA intrinsics (4 bins per instruction); same arithmetic as
+/// The f32 kernel: AVX2+FMA (8 bins per instruction) when available, else portable (f32
+/// storage, f64 arithmetic).
+fn kernel_f32(
+    c: &mut [&mut [f32]],
+    power: &[f32],
+    target: Option<&[f32]>,
+    freqs: &[f32],
+    omega: &[f64],
+    alpha: f64,
+    sums: &mut Sums,
+) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            // SAFETY: the CPU supports the features the function is compiled for.
+            unsafe { sweep_avx2_f32(c, power, target, freqs, omega, alpha, sums) };
+            return;
+        }
+    }
+    sweep_generic(c, power, target, freqs, omega, alpha, sums)
+}
+
+/// Running total Σ_k c_k over bins start..start+len into `tot`.
+#[inline(always)]
+fn block_total<C: Real>(c: &[&mut [C]], start: usize, tot: &mut [f64]) {
+    let len = tot.len();
+    tot.fill(0.0);
+    for ck in c {
+        for (t, v) in tot.iter_mut().zip(&ck[start..start + len]) {
+            *t += v.to64();
+        }
+    }
+}
+
+/// The f64 sweep in AVX2+FMA intrinsics (4 bins per instruction); same arithmetic as
 /// [`sweep_generic`] up to FMA rounding.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,fma")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn sweep_avx2(
-    u_re: &mut [&mut [f64]],
-    u_im: &mut [&mut [f64]],
-    t_re: &[f64],
-    t_im: &[f64],
+fn sweep_avx2_f64(
+    c: &mut [&mut [f64]],
+    power: &[f64],
+    target: Option<&[f64]>,
     freqs: &[f64],
     omega: &[f64],
     alpha: f64,
-    num: &mut [f64],
-    den: &mut [f64],
-) -> f64 {
+    sums: &mut Sums,
+) {
     use std::arch::x86_64::*;
-    let m = t_re.len();
-    let mut tot_re = [0.0; BLOCK];
-    let mut tot_im = [0.0; BLOCK];
-    let mut diff_s = 0.0;
+    let m = power.len();
+    let mut tot = [0.0; BLOCK];
+    let ones = [1.0; BLOCK];
     let one = _mm256_set1_pd(1.0);
     let va = _mm256_set1_pd(alpha);
-    let mut vdiff = _mm256_setzero_pd();
+    let hsum = |v: __m256d| {
+        let mut lanes = [0.0; 4];
+        // SAFETY: lanes holds four f64.
+        unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), v) };
+        lanes.iter().sum::<f64>()
+    };
     let mut start = 0;
     while start < m {
         let len = BLOCK.min(m - start);
         let end = start + len;
-        tot_re[..len].fill(0.0);
-        tot_im[..len].fill(0.0);
-        for k in 0..omega.len() {
-            for (t, v) in tot_re[..len].iter_mut().zip(&u_re[k][start..end]) {
-                *t += v;
-            }
-            for (t, v) in tot_im[..len].iter_mut().zip(&u_im[k][start..end]) {
-                *t += v;
-            }
-        }
+        block_total(c, start, &mut tot[..len]);
+        let tgt = match target {
+            Some(t) => &t[start..end],
+            None => &ones[..len],
+        };
         let full = len / 4 * 4;
         for (k, &om) in omega.iter().enumerate() {
             let vom = _mm256_set1_pd(om);
             let mut vnum = _mm256_setzero_pd();
             let mut vden = _mm256_setzero_pd();
-            let ur = u_re[k][start..end].as_mut_ptr();
-            let ui = u_im[k][start..end].as_mut_ptr();
-            let tr = tot_re.as_mut_ptr();
-            let ti = tot_im.as_mut_ptr();
-            let fr = t_re[start..end].as_ptr();
-            let fi = t_im[start..end].as_ptr();
+            let mut vdif = _mm256_setzero_pd();
+            let ck = c[k][start..end].as_mut_ptr();
+            let tp = tot.as_mut_ptr();
+            let gp = tgt.as_ptr();
+            let pp = power[start..end].as_ptr();
             let nu = freqs[start..end].as_ptr();
             let mut i = 0;
             // SAFETY: i + 4 <= full <= len, and every pointer addresses at least len values.
@@ -228,154 +329,286 @@ unsafe fn sweep_avx2(
                     let vnu = _mm256_loadu_pd(nu.add(i));
                     let d = _mm256_sub_pd(vnu, vom);
                     let w = _mm256_div_pd(one, _mm256_fmadd_pd(_mm256_mul_pd(va, d), d, one));
-                    let vur = _mm256_loadu_pd(ur.add(i));
-                    let vui = _mm256_loadu_pd(ui.add(i));
-                    let or = _mm256_sub_pd(_mm256_loadu_pd(tr.add(i)), vur);
-                    let oi = _mm256_sub_pd(_mm256_loadu_pd(ti.add(i)), vui);
-                    let nr = _mm256_mul_pd(_mm256_sub_pd(_mm256_loadu_pd(fr.add(i)), or), w);
-                    let ni = _mm256_mul_pd(_mm256_sub_pd(_mm256_loadu_pd(fi.add(i)), oi), w);
-                    let dr = _mm256_sub_pd(nr, vur);
-                    let di = _mm256_sub_pd(ni, vui);
-                    vdiff = _mm256_fmadd_pd(dr, dr, _mm256_fmadd_pd(di, di, vdiff));
-                    let p = _mm256_fmadd_pd(nr, nr, _mm256_mul_pd(ni, ni));
-                    vnum = _mm256_fmadd_pd(vnu, p, vnum);
-                    vden = _mm256_add_pd(vden, p);
-                    _mm256_storeu_pd(ur.add(i), nr);
-                    _mm256_storeu_pd(ui.add(i), ni);
-                    _mm256_storeu_pd(tr.add(i), _mm256_add_pd(or, nr));
-                    _mm256_storeu_pd(ti.add(i), _mm256_add_pd(oi, ni));
+                    let vc = _mm256_loadu_pd(ck.add(i));
+                    let o = _mm256_sub_pd(_mm256_loadu_pd(tp.add(i)), vc);
+                    let nc = _mm256_mul_pd(_mm256_sub_pd(_mm256_loadu_pd(gp.add(i)), o), w);
+                    let dc = _mm256_sub_pd(nc, vc);
+                    let vp = _mm256_loadu_pd(pp.add(i));
+                    vdif = _mm256_fmadd_pd(_mm256_mul_pd(dc, dc), vp, vdif);
+                    let e = _mm256_mul_pd(_mm256_mul_pd(nc, nc), vp);
+                    vnum = _mm256_fmadd_pd(vnu, e, vnum);
+                    vden = _mm256_add_pd(vden, e);
+                    _mm256_storeu_pd(ck.add(i), nc);
+                    _mm256_storeu_pd(tp.add(i), _mm256_add_pd(o, nc));
                     i += 4;
                 }
             }
-            let mut lanes = [0.0; 4];
-            // SAFETY: lanes holds four f64.
-            unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), vnum) };
-            num[k] += lanes.iter().sum::<f64>();
-            unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), vden) };
-            den[k] += lanes.iter().sum::<f64>();
+            sums.num[k] += hsum(vnum);
+            sums.den[k] += hsum(vden);
+            sums.dif[k] += hsum(vdif);
             for i in full..len {
                 let g = start + i;
-                let (ur, ui) = (u_re[k][g], u_im[k][g]);
-                let d = freqs[g] - om;
-                let w = 1.0 / (1.0 + alpha * d * d);
-                let or = tot_re[i] - ur;
-                let oi = tot_im[i] - ui;
-                let nr = (t_re[g] - or) * w;
-                let ni = (t_im[g] - oi) * w;
-                diff_s += (nr - ur) * (nr - ur) + (ni - ui) * (ni - ui);
-                let p = nr * nr + ni * ni;
-                num[k] += freqs[g] * p;
-                den[k] += p;
-                u_re[k][g] = nr;
-                u_im[k][g] = ni;
-                tot_re[i] = or + nr;
-                tot_im[i] = oi + ni;
+                update_bin(
+                    &mut c[k][g],
+                    &mut tot[i],
+                    tgt[i],
+                    power[g],
+                    freqs[g],
+                    om,
+                    alpha,
+                    sums,
+                    k,
+                );
             }
         }
         start = end;
     }
-    let mut lanes = [0.0; 4];
-    // SAFETY: lanes holds four f64.
-    unsafe { _mm256_storeu_pd(lanes.as_mut_ptr(), vdiff) };
-    diff_s + lanes.iter().sum::<f64>()
 }
 
-/// The sweep kernel: per block of bins, the running total Σ_k û_k, then each mode's Wiener
-/// update in 4 independent lanes (so the compiler can keep them in SIMD registers).
-#[inline(always)]
-#[allow(clippy::too_many_arguments)]
-fn sweep_generic(
-    u_re: &mut [&mut [f64]],
-    u_im: &mut [&mut [f64]],
-    t_re: &[f64],
-    t_im: &[f64],
-    freqs: &[f64],
+/// The f32 sweep in AVX2+FMA intrinsics: f32 storage and arithmetic, 8 bins per
+/// instruction, sums per block in f32 then accumulated in f64.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+fn sweep_avx2_f32(
+    c: &mut [&mut [f32]],
+    power: &[f32],
+    target: Option<&[f32]>,
+    freqs: &[f32],
     omega: &[f64],
     alpha: f64,
-    num: &mut [f64],
-    den: &mut [f64],
-) -> f64 {
-    const L: usize = 4;
-    let m = t_re.len();
-    let mut tot_re = [0.0; BLOCK];
-    let mut tot_im = [0.0; BLOCK];
-    let mut diff = [0.0; L];
+    sums: &mut Sums,
+) {
+    use std::arch::x86_64::*;
+    let m = power.len();
+    let mut tot = [0.0f32; BLOCK];
+    let ones = [1.0f32; BLOCK];
+    let one = _mm256_set1_ps(1.0);
+    let va = _mm256_set1_ps(alpha as f32);
+    let hsum = |v: __m256| {
+        let mut lanes = [0.0f32; 8];
+        // SAFETY: lanes holds eight f32.
+        unsafe { _mm256_storeu_ps(lanes.as_mut_ptr(), v) };
+        lanes.iter().map(|&x| x as f64).sum::<f64>()
+    };
     let mut start = 0;
     while start < m {
         let len = BLOCK.min(m - start);
         let end = start + len;
-        tot_re[..len].fill(0.0);
-        tot_im[..len].fill(0.0);
-        for k in 0..omega.len() {
-            for (t, v) in tot_re[..len].iter_mut().zip(&u_re[k][start..end]) {
-                *t += v;
-            }
-            for (t, v) in tot_im[..len].iter_mut().zip(&u_im[k][start..end]) {
+        tot[..len].fill(0.0);
+        for ck in c.iter() {
+            for (t, v) in tot[..len].iter_mut().zip(&ck[start..end]) {
                 *t += v;
             }
         }
+        let tgt = match target {
+            Some(t) => &t[start..end],
+            None => &ones[..len],
+        };
+        let full = len / 8 * 8;
         for (k, &om) in omega.iter().enumerate() {
-            let mut acc_num = [0.0; L];
-            let mut acc_den = [0.0; L];
-            let lanes = u_re[k][start..end]
-                .chunks_exact_mut(L)
-                .zip(u_im[k][start..end].chunks_exact_mut(L))
-                .zip(tot_re[..len].chunks_exact_mut(L))
-                .zip(tot_im[..len].chunks_exact_mut(L))
-                .zip(t_re[start..end].chunks_exact(L))
-                .zip(t_im[start..end].chunks_exact(L))
-                .zip(freqs[start..end].chunks_exact(L));
-            for ((((((ur, ui), tr), ti), fr), fi), nu) in lanes {
-                let ur: &mut [f64; L] = ur.try_into().expect("chunk of L");
-                let ui: &mut [f64; L] = ui.try_into().expect("chunk of L");
-                let tr: &mut [f64; L] = tr.try_into().expect("chunk of L");
-                let ti: &mut [f64; L] = ti.try_into().expect("chunk of L");
-                let fr: &[f64; L] = fr.try_into().expect("chunk of L");
-                let fi: &[f64; L] = fi.try_into().expect("chunk of L");
-                let nu: &[f64; L] = nu.try_into().expect("chunk of L");
-                for l in 0..L {
-                    let d = nu[l] - om;
-                    let w = 1.0 / (1.0 + alpha * d * d);
-                    let or = tr[l] - ur[l];
-                    let oi = ti[l] - ui[l];
-                    let nr = (fr[l] - or) * w;
-                    let ni = (fi[l] - oi) * w;
-                    let dr = nr - ur[l];
-                    let di = ni - ui[l];
-                    diff[l] += dr * dr + di * di;
-                    let p = nr * nr + ni * ni;
-                    acc_num[l] += nu[l] * p;
-                    acc_den[l] += p;
-                    ur[l] = nr;
-                    ui[l] = ni;
-                    tr[l] = or + nr;
-                    ti[l] = oi + ni;
+            let vom = _mm256_set1_ps(om as f32);
+            let mut vnum = _mm256_setzero_ps();
+            let mut vden = _mm256_setzero_ps();
+            let mut vdif = _mm256_setzero_ps();
+            let ck = c[k][start..end].as_mut_ptr();
+            let tp = tot.as_mut_ptr();
+            let gp = tgt.as_ptr();
+            let pp = power[start..end].as_ptr();
+            let nu = freqs[start..end].as_ptr();
+            let mut i = 0;
+            // SAFETY: i + 8 <= full <= len, and every pointer addresses at least len values.
+            unsafe {
+                while i < full {
+                    let vnu = _mm256_loadu_ps(nu.add(i));
+                    let d = _mm256_sub_ps(vnu, vom);
+                    let w = _mm256_div_ps(one, _mm256_fmadd_ps(_mm256_mul_ps(va, d), d, one));
+                    let vc = _mm256_loadu_ps(ck.add(i));
+                    let o = _mm256_sub_ps(_mm256_loadu_ps(tp.add(i)), vc);
+                    let nc = _mm256_mul_ps(_mm256_sub_ps(_mm256_loadu_ps(gp.add(i)), o), w);
+                    let dc = _mm256_sub_ps(nc, vc);
+                    let vp = _mm256_loadu_ps(pp.add(i));
+                    vdif = _mm256_fmadd_ps(_mm256_mul_ps(dc, dc), vp, vdif);
+                    let e = _mm256_mul_ps(_mm256_mul_ps(nc, nc), vp);
+                    vnum = _mm256_fmadd_ps(vnu, e, vnum);
+                    vden = _mm256_add_ps(vden, e);
+                    _mm256_storeu_ps(ck.add(i), nc);
+                    _mm256_storeu_ps(tp.add(i), _mm256_add_ps(o, nc));
+                    i += 8;
                 }
             }
-            for i in start + len / L * L..end {
-                let j = i - start;
-                let (ur, ui) = (u_re[k][i], u_im[k][i]);
-                let d = freqs[i] - om;
-                let w = 1.0 / (1.0 + alpha * d * d);
-                let or = tot_re[j] - ur;
-                let oi = tot_im[j] - ui;
-                let nr = (t_re[i] - or) * w;
-                let ni = (t_im[i] - oi) * w;
-                diff[0] += (nr - ur) * (nr - ur) + (ni - ui) * (ni - ui);
-                let p = nr * nr + ni * ni;
-                acc_num[0] += freqs[i] * p;
-                acc_den[0] += p;
-                u_re[k][i] = nr;
-                u_im[k][i] = ni;
-                tot_re[j] = or + nr;
-                tot_im[j] = oi + ni;
+            sums.num[k] += hsum(vnum);
+            sums.den[k] += hsum(vden);
+            sums.dif[k] += hsum(vdif);
+            for i in full..len {
+                let g = start + i;
+                let mut t = tot[i] as f64;
+                update_bin(
+                    &mut c[k][g],
+                    &mut t,
+                    tgt[i] as f64,
+                    power[g] as f64,
+                    freqs[g] as f64,
+                    om,
+                    alpha,
+                    sums,
+                    k,
+                );
+                tot[i] = t as f32;
             }
-            num[k] += acc_num.iter().sum::<f64>();
-            den[k] += acc_den.iter().sum::<f64>();
         }
         start = end;
     }
-    diff.iter().sum()
+}
+
+/// One bin's update of a mode: c ← (target − (tot − c))·W(ν) with W(ν) = 1/(1 + α(ν − ω)²);
+/// tot and the sums (slot `k`) follow.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn update_bin<C: Real>(
+    ck: &mut C,
+    tot: &mut f64,
+    target: f64,
+    power: f64,
+    nu: f64,
+    om: f64,
+    alpha: f64,
+    sums: &mut Sums,
+    k: usize,
+) {
+    let old = ck.to64();
+    let d = nu - om;
+    let w = 1.0 / (1.0 + alpha * d * d);
+    let o = *tot - old;
+    let nc = (target - o) * w;
+    sums.dif[k] += (nc - old) * (nc - old) * power;
+    let e = nc * nc * power;
+    sums.num[k] += nu * e;
+    sums.den[k] += e;
+    *ck = C::from64(nc);
+    *tot = o + nc;
+}
+
+/// The portable sweep: per block of bins, the running total Σ_k c_k, then each mode's
+/// Wiener update in 4 independent lanes (so the compiler can keep them in SIMD registers);
+/// f64 arithmetic whatever the storage.
+fn sweep_generic<C: Real>(
+    c: &mut [&mut [C]],
+    power: &[C],
+    target: Option<&[C]>,
+    freqs: &[C],
+    omega: &[f64],
+    alpha: f64,
+    sums: &mut Sums,
+) {
+    const L: usize = 4;
+    let m = power.len();
+    let mut tot = [0.0; BLOCK];
+    let mut start = 0;
+    while start < m {
+        let len = BLOCK.min(m - start);
+        let end = start + len;
+        block_total(c, start, &mut tot[..len]);
+        for (k, &om) in omega.iter().enumerate() {
+            let mut lanes = Sums::new(L);
+            for (i, t) in tot[..len].iter_mut().enumerate() {
+                let g = start + i;
+                let tg = target.map_or(1.0, |t| t[g].to64());
+                update_bin(
+                    &mut c[k][g],
+                    t,
+                    tg,
+                    power[g].to64(),
+                    freqs[g].to64(),
+                    om,
+                    alpha,
+                    &mut lanes,
+                    i % L,
+                );
+            }
+            sums.num[k] += lanes.num.iter().sum::<f64>();
+            sums.den[k] += lanes.den.iter().sum::<f64>();
+            sums.dif[k] += lanes.dif.iter().sum::<f64>();
+        }
+        start = end;
+    }
+}
+
+/// The ADMM iteration of [`vmd`] in coefficient form. Every update multiplies f̂(b) by a
+/// real number, so from û = 0 and λ̂ = 0 every iterate is û_k(b) = c_k(b)·f̂(b) and
+/// λ̂(b) = l(b)·f̂(b) with real c_k and l: the iteration runs on the c_k (half the memory
+/// of complex modes), weighted by `power` = |f̂(b)|² in the sums. Updates `omega`; returns
+/// the c_k (as f64), the iteration count and the last convergence measure.
+fn admm<C: Real>(
+    kernel: Kernel<C>,
+    power: &[f64],
+    freqs: &[f64],
+    omega: &mut [f64],
+    params: &VmdParams,
+) -> (Vec<Vec<f64>>, usize, f64) {
+    let m = power.len();
+    let t = 2 * m;
+    let k_modes = omega.len();
+    let power: Vec<C> = power.iter().map(|&v| C::from64(v)).collect();
+    let freqs: Vec<C> = freqs.iter().map(|&v| C::from64(v)).collect();
+    let mut dual = vec![0.0; m];
+    let mut target: Option<Vec<C>> = (params.tau != 0.0).then(|| vec![C::from64(1.0); m]);
+    let mut c = vec![vec![C::default(); m]; k_modes];
+    let mut iterations = 0;
+    let mut u_diff = f64::INFINITY;
+    let threads = if m >= PARALLEL_MIN_BINS {
+        std::thread::available_parallelism()
+            .map_or(1, |p| p.get())
+            .min(2)
+    } else {
+        1
+    };
+    // ‖û_k^n‖² of the iterate before the sweep (the sweep returns that of the new one).
+    let mut prev_den = vec![0.0; k_modes];
+    while iterations < params.max_iter.saturating_sub(1) && u_diff > params.tol {
+        let sums = sweep(
+            kernel,
+            &mut c,
+            &power,
+            target.as_deref(),
+            &freqs,
+            omega,
+            params.alpha,
+            threads,
+        );
+        for (k, om) in omega.iter_mut().enumerate() {
+            if !(params.dc && k == 0) && sums.den[k] > 0.0 {
+                *om = sums.num[k] / sums.den[k];
+            }
+        }
+        if let Some(tc) = target.as_mut() {
+            for b in 0..m {
+                let s: f64 = (0..k_modes).map(|k| c[k][b].to64()).sum();
+                dual[b] += params.tau * (s - 1.0);
+                tc[b] = C::from64(1.0 - 0.5 * dual[b]);
+            }
+        }
+        iterations += 1;
+        u_diff = match params.convergence {
+            Convergence::Absolute => f64::EPSILON + sums.dif.iter().sum::<f64>() / t as f64,
+            // A mode that was zero has not converged unless it is still zero.
+            Convergence::Relative => sums
+                .dif
+                .iter()
+                .zip(&prev_den)
+                .map(|(&d, &e)| match (d > 0.0, e > 0.0) {
+                    (_, true) => d / e,
+                    (false, false) => 0.0,
+                    (true, false) => f64::INFINITY,
+                })
+                .sum(),
+        };
+        prev_den = sums.den;
+    }
+    let c = c
+        .into_iter()
+        .map(|v| v.into_iter().map(Real::to64).collect())
+        .collect();
+    (c, iterations, u_diff)
 }
 
 /// Output of [`vmd`].
@@ -395,9 +628,17 @@ pub struct VmdResult {
 /// Formula (paper 002 eqs. 5-8; Dragomiretskiy & Zosso 2014, Algorithm 2): on the one-sided
 /// spectrum of the mirror-extended signal (length T = 2n), Gauss-Seidel updates
 /// û_k ← (f̂ − Σ_{i≠k} û_i − λ̂/2) / (1 + α(ω − ω_k)²) (ω in cycles/sample, as vmdpy),
-/// ω_k ← Σ ω|û_k|² / Σ |û_k|², λ̂ ← λ̂ + τ(Σ û_k − f̂), until
-/// Σ_k ‖û_k^{n+1} − û_k^n‖²/T < tol or `max_iter`. Returns the last iterate (as the MATLAB
-/// reference; vmdpy returns the one before, a 1e-5 mm difference on the paper's signal).
+/// ω_k ← Σ ω|û_k|² / Σ |û_k|², λ̂ ← λ̂ + τ(Σ û_k − f̂), until the [`Convergence`] rule
+/// holds (default `absolute` as vmdpy: Σ_k ‖û_k^{n+1} − û_k^n‖²/T < tol; `relative` as
+/// published) or `max_iter`. Returns the last iterate (as the MATLAB reference; vmdpy
+/// returns the one before, a 1e-5 mm difference on the paper's signal).
+///
+/// Arithmetic: the iteration runs on real coefficients c_k with û_k = c_k·f̂ (exact, see
+/// `admm`), in f64 below [`F32_MIN_BINS`] bins and in f32 from there on (signals of at
+/// least 65,536 samples: the sweep is bound by memory and division throughput, and f32
+/// halves both). Measured on the paper's signal at 250,000 samples: the f32 modes differ
+/// from the f64 ones by at most 1.4e-8 mm (modes of rms 0.001-0.03 mm), and the same
+/// iteration count and systematic error to 6 digits.
 ///
 /// Mirror extension: [rev(x[..h]), x, rev(x[h..])] with h = ceil(n/2), so odd and even
 /// lengths are both exact (vmdpy drops the last sample of odd-length input).
@@ -440,60 +681,15 @@ pub fn vmd(x: &[f64], params: &VmdParams) -> Result<VmdResult, Error> {
     if params.dc {
         omega[0] = 0.0;
     }
-    // Modes as separate real and imaginary arrays (structure of arrays, vectorisable).
-    let f_re: Vec<f64> = f_hat.iter().map(|c| c.re).collect();
-    let f_im: Vec<f64> = f_hat.iter().map(|c| c.im).collect();
-    let mut t_re = f_re.clone();
-    let mut t_im = f_im.clone();
-    let mut lam_re = vec![0.0; m];
-    let mut lam_im = vec![0.0; m];
-    let mut u_re = vec![vec![0.0; m]; k_modes];
-    let mut u_im = vec![vec![0.0; m]; k_modes];
-    let mut iterations = 0;
-    let mut u_diff = f64::INFINITY;
-    let threads = if m >= PARALLEL_MIN_BINS {
-        std::thread::available_parallelism()
-            .map_or(1, |p| p.get())
-            .min(2)
+    let power: Vec<f64> = f_hat.iter().map(|c| c.norm_sqr()).collect();
+    let (c, iterations, u_diff) = if m >= F32_MIN_BINS {
+        admm::<f32>(kernel_f32, &power, &freqs, &mut omega, params)
     } else {
-        1
+        admm::<f64>(kernel_f64, &power, &freqs, &mut omega, params)
     };
-    while iterations < params.max_iter.saturating_sub(1) && u_diff > params.tol {
-        let mut num = vec![0.0; k_modes];
-        let mut den = vec![0.0; k_modes];
-        let diff = sweep(
-            &mut u_re,
-            &mut u_im,
-            &t_re,
-            &t_im,
-            &freqs,
-            &omega,
-            params.alpha,
-            &mut num,
-            &mut den,
-            threads,
-        );
-        for k in 0..k_modes {
-            if !(params.dc && k == 0) && den[k] > 0.0 {
-                omega[k] = num[k] / den[k];
-            }
-        }
-        if params.tau != 0.0 {
-            for b in 0..m {
-                let (sr, si) =
-                    (0..k_modes).fold((0.0, 0.0), |(a, c), k| (a + u_re[k][b], c + u_im[k][b]));
-                lam_re[b] += params.tau * (sr - f_re[b]);
-                lam_im[b] += params.tau * (si - f_im[b]);
-                t_re[b] = f_re[b] - 0.5 * lam_re[b];
-                t_im[b] = f_im[b] - 0.5 * lam_im[b];
-            }
-        }
-        iterations += 1;
-        u_diff = f64::EPSILON + diff / t as f64;
-    }
     let u: Vec<Complex<f64>> = (0..m)
         .flat_map(|b| (0..k_modes).map(move |k| (b, k)))
-        .map(|(b, k)| Complex::new(u_re[k][b], u_im[k][b]))
+        .map(|(b, k)| f_hat[b] * c[k][b])
         .collect();
 
     let inv = planner.plan_fft_inverse(t);
@@ -660,6 +856,93 @@ mod tests {
         );
         assert!(vmd(&[1.0, f64::NAN, 2.0, 3.0], &VmdParams::default()).is_err());
         assert!(vmd(&[1.0, 2.0], &VmdParams::default()).is_err());
+    }
+
+    #[test]
+    fn relative_convergence_is_scale_free_absolute_is_not() {
+        let x: Vec<f64> = (0..600)
+            .map(|k| {
+                let t = k as f64;
+                (2.0 * std::f64::consts::PI * 0.03 * t).sin()
+                    + 0.3 * (2.0 * std::f64::consts::PI * 0.2 * t).sin()
+            })
+            .collect();
+        let big: Vec<f64> = x.iter().map(|v| v * 1000.0).collect();
+        let run = |x: &[f64], convergence| {
+            vmd(
+                x,
+                &VmdParams {
+                    k: Some(2),
+                    tol: 1e-6,
+                    convergence,
+                    ..Default::default()
+                },
+            )
+            .unwrap()
+        };
+        let (r1, r2) = (
+            run(&x, Convergence::Relative),
+            run(&big, Convergence::Relative),
+        );
+        assert_eq!(r1.iterations, r2.iterations);
+        assert!(r1.u_diff < 1e-6 && r1.iterations < 499, "{}", r1.iterations);
+        let (a1, a2) = (
+            run(&x, Convergence::Absolute),
+            run(&big, Convergence::Absolute),
+        );
+        assert!(
+            a2.iterations > a1.iterations,
+            "{} {}",
+            a1.iterations,
+            a2.iterations
+        );
+        for (p, q) in r1.omega.iter().zip(&a1.omega) {
+            assert!((p - q).abs() < 1e-3, "{:?} {:?}", r1.omega, a1.omega);
+        }
+    }
+
+    #[test]
+    fn f32_iteration_matches_f64() {
+        // The f32 path (long spectra) against the f64 one on the same input: modes to 1e-6
+        // of the signal's amplitude after 40 iterations.
+        let n = 8192;
+        let x: Vec<f64> = (0..n)
+            .map(|k| {
+                let t = k as f64;
+                0.04 * (2.0 * std::f64::consts::PI * 0.004 * t).sin()
+                    + 0.01 * (2.0 * std::f64::consts::PI * 0.1 * t).cos()
+                    + 0.005 * ((k * 7919 % 1000) as f64 / 500.0 - 1.0)
+            })
+            .collect();
+        let mut planner = RealFftPlanner::<f64>::new();
+        let fwd = planner.plan_fft_forward(n);
+        let mut buf = x.clone();
+        let mut spec = fwd.make_output_vec();
+        fwd.process(&mut buf, &mut spec).unwrap();
+        let m = n / 2;
+        let power: Vec<f64> = spec[..m].iter().map(|c| c.norm_sqr()).collect();
+        let freqs: Vec<f64> = (0..m).map(|b| b as f64 / n as f64).collect();
+        let p = VmdParams {
+            k: Some(4),
+            max_iter: 41,
+            tol: 1e-300,
+            ..Default::default()
+        };
+        let mut om64: Vec<f64> = (0..4).map(|k| 0.125 * k as f64).collect();
+        let mut om32 = om64.clone();
+        let (c64, _, _) = admm::<f64>(kernel_f64, &power, &freqs, &mut om64, &p);
+        let (c32, _, _) = admm::<f32>(kernel_f32, &power, &freqs, &mut om32, &p);
+        for (a, b) in om64.iter().zip(&om32) {
+            assert!((a - b).abs() < 1e-6, "{om64:?} {om32:?}");
+        }
+        for (a, b) in c64.iter().zip(&c32) {
+            let d = a
+                .iter()
+                .zip(b)
+                .map(|(u, v)| (u - v).abs())
+                .fold(0.0, f64::max);
+            assert!(d < 1e-5, "coefficient difference {d}");
+        }
     }
 
     #[test]
