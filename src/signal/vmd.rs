@@ -488,9 +488,9 @@ fn update_bin<C: Real>(
     *tot = o + nc;
 }
 
-/// The portable sweep: per block of bins, the running total Σ_k c_k, then each mode's
-/// Wiener update in 4 independent lanes (so the compiler can keep them in SIMD registers);
-/// f64 arithmetic whatever the storage.
+/// The portable sweep (no AVX2): per block of bins, the running total Σ_k c_k, then each
+/// mode's Wiener update with the sums in 4 interleaved partial sums (the order of the AVX2
+/// f64 kernel); f64 arithmetic whatever the storage.
 fn sweep_generic<C: Real>(
     c: &mut [&mut [C]],
     power: &[C],
