@@ -75,7 +75,7 @@ impl CompensatedSurface {
     /// (systematic error, mm, positive where material was left).
     ///
     /// Formula: p'_k = p_k − offset_k·n_k ([`compensate_points`]), then tensor-product
-    /// not-a-knot cubic interpolation of p', n and offset over (u, v) ∈ [0,1]².
+    /// not-a-knot cubic interpolation of p', n and offset over (u, v) ∈ \[0,1\]².
     /// Errors: nu or nv < 2, lengths ≠ nu·nv, non-finite values, zero normals.
     pub fn new(
         nu: usize,

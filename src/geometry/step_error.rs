@@ -139,7 +139,7 @@ impl StepErrorSolver {
     /// Units: mm in, mm out. Reference: seed 000 eq. (1) and Fig. 1.
     /// Known bad cases: inflected segments (flagged; the middle decides), CC points so sparse
     /// that the spline misses the curve's shape, several equal extrema (one is returned).
-    /// Errors: R <= 0, m < 3, non-finite points, cl[0] == cl[1], |cl - cc| != R (> 0.1 %).
+    /// Errors: R <= 0, m < 3, non-finite points, `cl[0] == cl[1]`, |cl - cc| != R (> 0.1 %).
     pub fn solve(
         &mut self,
         tool_radius_mm: f64,

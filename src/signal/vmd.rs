@@ -723,7 +723,7 @@ pub fn vmd(x: &[f64], params: &VmdParams) -> Result<VmdResult, Error> {
 /// phase increment of its analytic signal (Hilbert transform by FFT) / 2π.
 ///
 /// Reference: the instantaneous-frequency-mean method for choosing K (Chang et al. 2021,
-/// cited as [30] in paper 002). Known bad cases: a mode that is ~0 everywhere (returns 0).
+/// cited as \[30\] in paper 002). Known bad cases: a mode that is ~0 everywhere (returns 0).
 pub fn mean_instantaneous_frequency(mode: &[f64]) -> f64 {
     let n = mode.len();
     if n < 3 {

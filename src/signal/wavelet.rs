@@ -265,7 +265,7 @@ fn sym_index(i: isize, n: usize) -> usize {
 
 /// One level of the DWT: returns (cA, cD), each of length floor((n + F - 1)/2).
 ///
-/// Formula: cA[o] = sum_j dec_lo[j] x~[2o + 1 - j] (x~ the symmetric extension); same with
+/// Formula: `cA[o] = sum_j dec_lo[j] x~[2o + 1 - j]` (x~ the symmetric extension); same with
 /// dec_hi for cD. Reference: PyWavelets `pywt.dwt(x, w, mode='symmetric')`.
 pub fn dwt(x: &[f64], w: &Wavelet) -> (Vec<f64>, Vec<f64>) {
     let n = x.len();
@@ -297,7 +297,7 @@ pub fn dwt(x: &[f64], w: &Wavelet) -> (Vec<f64>, Vec<f64>) {
 
 /// One level of the inverse DWT ("valid" upsampling convolution); output length 2L - F + 2.
 ///
-/// Formula: y[m] = sum_k cA[k] rec_lo[m + F - 2 - 2k] + cD[k] rec_hi[m + F - 2 - 2k].
+/// Formula: `y[m] = sum_k cA[k] rec_lo[m + F - 2 - 2k] + cD[k] rec_hi[m + F - 2 - 2k]`.
 /// Reference: PyWavelets `pywt.idwt(cA, cD, w, mode='symmetric')`.
 pub fn idwt(ca: &[f64], cd: &[f64], w: &Wavelet) -> Vec<f64> {
     let f = w.len();
