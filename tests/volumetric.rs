@@ -46,6 +46,7 @@ async fn fit_predict_and_describe(app: TestApp) {
         assert_eq!(r.status(), 200, "hybrid with {residual}");
         let body: Value = r.json().await.unwrap();
         assert_eq!(body["model"], "hybrid");
+        assert_eq!(body["residual"], residual);
         hybrid_counts.push(body["parameter_count"].as_u64().unwrap());
     }
     // replacing answers 200
@@ -53,6 +54,7 @@ async fn fit_predict_and_describe(app: TestApp) {
     assert_eq!(r.status(), 200);
     let body: Value = r.json().await.unwrap();
     assert_eq!(body["model"], "kinematic");
+    assert!(body["residual"].is_null(), "{body}");
     let kinematic_count = body["parameter_count"].as_u64().unwrap();
     assert!(
         hybrid_counts.iter().all(|&c| c > kinematic_count),

@@ -210,8 +210,17 @@ async fn require_map(state: &AppState, machine: &str) -> ApiResult<VolumetricMap
 }
 
 fn summary(map: &VolumetricMap) -> serde_json::Value {
+    // which residual part a hybrid carries (null for the other models)
+    let residual = match &map.model {
+        volumetric::Model::Hybrid(h) => match h.residual_kind() {
+            ResidualKind::Spline => Some("spline"),
+            ResidualKind::Network => Some("network"),
+        },
+        _ => None,
+    };
     json!({
         "model": map.model.kind().name(),
+        "residual": residual,
         "requested": map.options.model.name(),
         "parameter_count": map.model.parameter_count(),
         "n_nodes": map.n_nodes,
