@@ -18,6 +18,7 @@
 //! - [`motion`]: contour error from G-code (seed 003): G-code reader, RTCP interpolation, kinematics, servo cascade, contour error.
 //! - [`signal`]: machining-error decomposition (seed 002): VMD, EMD, wavelets, Whittaker smoothing, screening, coarse-to-fine in 1-D and on 2-D grids.
 //! - [`compensation`]: normal-offset compensation (seed 002): compensated points, reconstructed compensated surface, compensated CL points.
+//! - [`parallel`]: thread counts for the cores' scoped-thread splits (0 = all cores).
 //! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check.
 
 pub mod api;
@@ -29,6 +30,7 @@ pub mod geometry;
 pub mod jobs;
 pub mod motion;
 pub mod nn;
+pub mod parallel;
 pub mod server;
 pub mod signal;
 pub mod store;

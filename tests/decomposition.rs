@@ -299,23 +299,6 @@ async fn measurement_decomposition_and_compensation(app: TestApp) {
 }
 on_both_backends!(measurement_decomposition_and_compensation);
 
-async fn wait_job(app: &TestApp, id: &str) -> Value {
-    for _ in 0..600 {
-        let r: Value = app
-            .get(&format!("/v1/jobs/{id}"))
-            .await
-            .json()
-            .await
-            .unwrap();
-        match r["state"].as_str() {
-            Some("done") => return r,
-            Some("failed") => panic!("job failed: {r}"),
-            _ => tokio::time::sleep(std::time::Duration::from_millis(100)).await,
-        }
-    }
-    panic!("job {id} did not finish in 60 s");
-}
-
 /// Above the sync limit (CONTRACT: sync up to 250,000 samples) the stateless route answers
 /// 202 with a job whose result is the same decomposition (default method, coarse-to-fine);
 /// at the limit it answers 200.
@@ -333,7 +316,7 @@ async fn large_decomposition_runs_as_a_job() {
         .as_str()
         .expect("job id")
         .to_string();
-    let done = wait_job(&app, &id).await;
+    let done = app.wait_job(&id).await;
     let res = &done["result"];
     assert_eq!(res["method"], "coarse_to_fine");
     let (s, rnd) = (floats(&res["systematic"]), floats(&res["random"]));

@@ -202,6 +202,25 @@ impl TestApp {
         .expect("request failed")
     }
 
+    /// Polls `GET /v1/jobs/{id}` every 100 ms until the job is done (its JSON) or failed
+    /// (panics); panics after 60 s.
+    pub async fn wait_job(&self, id: &str) -> serde_json::Value {
+        for _ in 0..600 {
+            let r: serde_json::Value = self
+                .get(&format!("/v1/jobs/{id}"))
+                .await
+                .json()
+                .await
+                .unwrap();
+            match r["state"].as_str() {
+                Some("done") => return r,
+                Some("failed") => panic!("job failed: {r}"),
+                _ => tokio::time::sleep(std::time::Duration::from_millis(100)).await,
+            }
+        }
+        panic!("job {id} did not finish in 60 s");
+    }
+
     /// The running server (store and jobs are reachable through `state()`).
     pub fn server(&self) -> &Server {
         self.server.as_ref().expect("server is stopped")

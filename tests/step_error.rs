@@ -31,23 +31,6 @@ fn vectors() -> Vec<(Value, f64)> {
         .collect()
 }
 
-async fn wait_job(app: &TestApp, id: &str) -> Value {
-    for _ in 0..600 {
-        let r: Value = app
-            .get(&format!("/v1/jobs/{id}"))
-            .await
-            .json()
-            .await
-            .unwrap();
-        match r["state"].as_str() {
-            Some("done") => return r,
-            Some("failed") => panic!("job failed: {r}"),
-            _ => tokio::time::sleep(std::time::Duration::from_millis(100)).await,
-        }
-    }
-    panic!("job {id} did not finish in 60 s");
-}
-
 async fn samples(app: &TestApp, reference: u32, lines: usize, points: usize) -> Value {
     let r = app
         .post_json(
@@ -316,7 +299,7 @@ async fn train_predict_and_fine_tune(app: TestApp) {
         .await;
     assert_eq!(r.status(), 202);
     let job: Value = r.json().await.unwrap();
-    let done = wait_job(&app, job["job"].as_str().unwrap()).await;
+    let done = app.wait_job(job["job"].as_str().unwrap()).await;
     let res = &done["result"];
     assert!(res["test_max_abs_um"].as_f64().unwrap() < 2.0, "{res}");
     let info: Value = app
@@ -358,7 +341,7 @@ async fn train_predict_and_fine_tune(app: TestApp) {
         .await;
     assert_eq!(r.status(), 202);
     let job: Value = r.json().await.unwrap();
-    let done = wait_job(&app, job["job"].as_str().unwrap()).await;
+    let done = app.wait_job(job["job"].as_str().unwrap()).await;
     let res = &done["result"];
     let (before, after) = (
         res["base_test_mean_abs_um"].as_f64().unwrap(),

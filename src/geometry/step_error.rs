@@ -545,13 +545,7 @@ pub fn step_errors(
     segments: &[StepErrorSegment],
     threads: usize,
 ) -> Result<Vec<StepError>> {
-    let threads = if threads == 0 {
-        std::thread::available_parallelism()
-            .map(|t| t.get())
-            .unwrap_or(1)
-    } else {
-        threads
-    };
+    let threads = crate::parallel::resolve_threads(threads);
     let per = segments.len().div_ceil(threads.max(1)).max(1024);
     let run = |offset: usize, segs: &[StepErrorSegment]| -> Result<Vec<StepError>> {
         StepErrorSolver::default()
