@@ -88,10 +88,14 @@ fn table3_twenty_seeds() {
     for (name, method, params, paper, peer) in &rows {
         let mut acc = [0.0; 3];
         let mut worst_mean: f64 = 0.0;
+        let mut carriers = 0;
         for x in &noisy {
             let d = decompose(x, *method, params).unwrap();
             for (i, (s, r)) in d.systematic.iter().zip(&d.random).enumerate() {
                 assert!((s + r - x[i]).abs() < 1e-12);
+            }
+            if let Some(st) = &d.components.stages {
+                carriers += usize::from(!st.narrow_band.is_empty());
             }
             let m = metrics(&d.systematic, &truth);
             for i in 0..3 {
@@ -103,6 +107,9 @@ fn table3_twenty_seeds() {
             "{name} | {:.5} / {:.5} / {:.5} ({worst_mean:.5}) | {:.4} / {:.4} / {:.4} | {:.5} / {:.5} / {:.5}",
             acc[0], acc[1], acc[2], paper[0], paper[1], paper[2], peer[0], peer[1], peer[2]
         );
+        if carriers > 0 {
+            println!("  (a narrow-band carrier was refitted in {carriers} of 20 draws)");
+        }
         results.push(acc);
     }
     let (vmd, c2f_paper, c2f) = (results[0], results[3], results[4]);
@@ -125,10 +132,14 @@ fn table3_twenty_seeds() {
         "default mean abs {:.5} > paper 0.0008",
         c2f[2]
     );
-    // Correlation: the paper's 0.9998 is not reached (ours ≈ 0.99973); with Gaussian errors a
-    // mean abs of 0.0008 mm implies corr ≈ 0.9997 on this signal, and even a smoother tuned on
-    // the truth reaches only 0.99977 (REPORT §1). We require at least the peers' best smoother.
-    assert!(c2f[0] >= 0.99967, "default corr {:.5}", c2f[0]);
+    // Correlation: the paper's 0.9998 is reached since stage 5 refits the sinusoid's VMD
+    // mode as a carrier with a slow envelope (≈ 0.99982; with the broadband smoother alone
+    // it was 0.99973, the level REPORT §1's truth-tuned smoother reaches, 0.99977).
+    assert!(
+        c2f[0] >= 0.9998,
+        "default corr {:.5} < paper 0.9998",
+        c2f[0]
+    );
     assert!(c2f[2] < 0.7 * c2f_paper[2] && c2f[2] < vmd[2]);
 }
 

@@ -13,21 +13,23 @@
 //!    of the bands that carry it by λ (REPORT §3: db4 level 8 mean abs 0.0034 mm vs level 4
 //!    0.0010 mm), and the mirror extension flattens the ends (17/20 worst errors at an end).
 //!
-//! The fix (stage 5, `refine`, on by default): the broadband systematic part is re-estimated
-//! from the measured error by a penalised least-squares smoother whose only parameter is
-//! chosen by GCV (no truth), with natural ends; VMD's contribution is kept where a smoother
-//! cannot replace it: strongly correlated narrow-band modes above the smoother's cut-off
-//! (e.g. feed-mark waviness) whose energy clearly exceeds the noise their filter passes are
-//! added back unsmoothed. Stage 3 uses the "noise" level rule instead of the maximum level.
+//! The fix (stage 5, `refine`, on by default): the systematic part is re-estimated from the
+//! measured error as L + H. H holds the spectral lines of the strong VMD modes, each refitted
+//! as a carrier with a slowly varying envelope ([`super::carrier`]): a steady sinusoid then
+//! costs ~4 degrees of freedom instead of the mode's whole Wiener band. L is a penalised
+//! least-squares smoother of the rest whose only parameter is chosen by GCV (no truth), with
+//! natural ends; with the lines removed GCV can smooth the rest harder. H is kept only where
+//! Mallows' Cp says it helps. Stage 3 uses the "noise" level rule instead of the maximum level.
 //! With `refine: false` the result is X4 (the paper's pipeline with the level rule).
 
+use super::carrier::{Carrier, strongest_line};
 use super::emd::{EmdParams, emd};
 use super::error::{Error, check_signal};
 use super::field2d::Order;
 use super::screen::{screen, sum_selected};
 use super::vmd::{VmdParams, choose_k, vmd};
 use super::wavelet::{LevelRule, Wavelet, denoise, max_level, median_abs, noise_level};
-use super::whittaker::{Smoothed, gcv_lambda, half_power_frequency, whittaker};
+use super::whittaker::{Smoothed, whittaker};
 use serde::{Deserialize, Serialize};
 
 /// Wavelet level: a number, or a rule (`"noise"` default, `"max"` as PyWavelets).
@@ -147,6 +149,8 @@ pub struct CoarseToFineResult {
     /// Stage-5 smoother, and the VMD modes added back as narrow-band systematic error.
     pub refine: Option<Smoothed>,
     pub narrow_band_modes: Vec<usize>,
+    /// The carriers refitted from those modes (frequency, envelope degrees of freedom).
+    pub narrow_band: Vec<NarrowBand>,
     #[serde(skip)]
     pub x1: Vec<f64>,
     #[serde(skip)]
@@ -173,8 +177,8 @@ pub fn noise_sigma(x: &[f64]) -> f64 {
 /// systematic part and what each stage found; random = x − systematic.
 ///
 /// Formula: stages 1-4 of paper 002 §2.3.4 (eqs. 17-22); stage 5 as in the module doc:
-/// systematic = H + S_λ(x − H), H the narrow-band modes chosen by [`narrow_band_part`]
-/// (empty unless they lower Mallows' Cp), S_λ the GCV Whittaker smoother.
+/// systematic = H + S_λ(x − H), H the carriers of [`narrow_band_part`] (empty unless they
+/// lower Mallows' Cp), S_λ the GCV Whittaker smoother.
 /// Known bad cases: fewer than 16 samples (error); with a noise level comparable to the
 /// systematic error the screening keeps noise modes (REPORT section 2); stage 5 is then what
 /// helps.
@@ -231,25 +235,13 @@ pub fn coarse_to_fine(
         ..Default::default()
     };
     if params.refine {
-        let (h, modes, smoothed) = narrow_band_part(
-            x,
-            &v.modes,
-            &v.omega,
-            &out.vmd_strong,
-            vp.alpha,
-            d,
-            params.lambda,
-        );
-        let s = match smoothed {
-            Some(s) => s,
-            None => {
-                let rest: Vec<f64> = x.iter().zip(&h).map(|(a, b)| a - b).collect();
-                whittaker(&rest, d, params.lambda)?
-            }
-        };
+        let lambda = params.lambda;
+        let smooth = move |r: &[f64]| whittaker(r, d, lambda);
+        let (h, bands, s) = narrow_band_part(x, &v.modes, &out.vmd_strong, Some(d), &smooth)?;
         out.systematic = s.signal.iter().zip(&h).map(|(a, b)| a + b).collect();
         out.refine = Some(s);
-        out.narrow_band_modes = modes;
+        out.narrow_band_modes = bands.iter().map(|b| b.mode).collect();
+        out.narrow_band = bands;
     } else {
         out.systematic = x4.clone();
     }
@@ -261,81 +253,138 @@ pub fn coarse_to_fine(
     Ok(out)
 }
 
-/// Stage 5's narrow-band part H: strong VMD modes that stand clearly above the noise their own Wiener filter
-/// passes (energy > 4·n·σ̂²·mean_b W_k(b)²) and lie above the cut-off of the smoother fitted
-/// without them. H is used only if it lowers Mallows' Cp = ‖x − est‖² + 2σ̂²·df against the
-/// smoother alone (df: the smoother's trace plus Σ_b W_k(b) per mode). Returns H, the
-/// mode indices (empty when the smoother alone is better) and, when this comparison ran,
-/// the smoother of x − H it computed (so the caller need not smooth again).
+/// One carrier of stage 5's narrow-band part.
+#[derive(Clone, Debug, Serialize)]
+pub struct NarrowBand {
+    /// The strong VMD mode whose spectral line it is.
+    pub mode: usize,
+    /// Carrier frequency (cycles/sample) and envelope degrees of freedom.
+    pub frequency: f64,
+    pub edf: f64,
+}
+
+/// Broadband gain 1/(1 + λ(2 sin πf)^(2d)) of a d-th-order Whittaker smoother at f.
+fn smoother_gain(s: &Smoothed, d: usize, f: f64) -> f64 {
+    let e = (2.0 * (std::f64::consts::PI * f).sin()).powi(2 * d as i32);
+    1.0 / (1.0 + s.lambda * e)
+}
+
+/// Stage 5's narrow-band part H = Σ_k h_k: the spectral lines of strong VMD modes, each
+/// refitted as a carrier with a slowly varying envelope ([`Carrier`]), so that only the
+/// few degrees of freedom of its envelope (not the mode's whole Wiener band) carry noise.
+///
+/// A strong mode contributes its strongest line at ≥ 8 periods per record whose Hann
+/// periodogram power exceeds (2 ln n + 8)·σ̂² (σ̂ from [`noise_sigma`]); lines closer than
+/// 2/n are merged. Each h_k starts as the carrier fit of x minus the other strong modes;
+/// then two rounds of backfitting alternate L = S(x − H) and h_k = fit(x − L − Σ_{j≠k} h_j),
+/// S the broadband smoother (`smooth`). H is used only if it lowers Mallows'
+/// Cp = ‖x − est‖² + 2σ̂²·df against S alone, with df = tr S + Σ_k (1 − G_S(f_k))·tr h_k (the
+/// share of a carrier's degrees of freedom S would not have spent anyway) when S is the 1-D
+/// Whittaker smoother of order `order_1d`; otherwise (a 2-D S, whose gain along the path is
+/// not a function of f alone) df = tr S + Σ_k tr h_k, which keeps a carrier only when it
+/// clearly pays.
+/// Returns H (zeros if not used), its carriers, and the broadband smoother to pair with it.
 pub fn narrow_band_part(
     x: &[f64],
     modes: &[Vec<f64>],
-    omega: &[f64],
     strong: &[bool],
-    alpha: f64,
-    d: usize,
-    lambda: Option<f64>,
-) -> (Vec<f64>, Vec<usize>, Option<Smoothed>) {
+    order_1d: Option<usize>,
+    smooth: &(dyn Fn(&[f64]) -> Result<Smoothed, Error> + Sync),
+) -> Result<(Vec<f64>, Vec<NarrowBand>, Smoothed), Error> {
     let n = x.len();
     let sigma = noise_sigma(x);
-    let filter = |k: usize| {
-        (0..n).map(move |b| {
-            let dnu = b as f64 / (2 * n) as f64 - omega[k];
-            1.0 / (1.0 + alpha * dnu * dnu)
-        })
-    };
-    let candidates: Vec<usize> = (0..modes.len())
-        .filter(|&k| {
-            let frac = filter(k).map(|w| w * w).sum::<f64>() / n as f64;
-            let energy: f64 = modes[k].iter().map(|v| v * v).sum();
-            strong[k] && energy > 4.0 * n as f64 * sigma * sigma * frac
-        })
-        .collect();
-    let none = (vec![0.0; n], Vec::new(), None);
-    if candidates.is_empty() {
-        return none;
-    }
-    let sum_of = |ks: &[usize]| {
-        let mut h = vec![0.0; n];
-        for &k in ks {
-            for (a, b) in h.iter_mut().zip(&modes[k]) {
-                *a += b;
+    let threshold = (2.0 * (n as f64).ln() + 8.0) * sigma * sigma;
+    let mut lines: Vec<(usize, f64)> = Vec::new();
+    for (k, mode) in modes.iter().enumerate() {
+        if !strong[k] {
+            continue;
+        }
+        if let Some((f, power)) = strongest_line(mode) {
+            if power > threshold && lines.iter().all(|&(_, g)| (g - f).abs() >= 2.0 / n as f64) {
+                lines.push((k, f));
             }
         }
-        h
-    };
-    let h_all = sum_of(&candidates);
-    let rest: Vec<f64> = x.iter().zip(&h_all).map(|(a, b)| a - b).collect();
-    let cutoff = half_power_frequency(lambda.unwrap_or_else(|| gcv_lambda(&rest, d)), d);
-    let picked: Vec<usize> = candidates
-        .into_iter()
-        .filter(|&k| omega[k] > cutoff)
-        .collect();
-    if picked.is_empty() {
-        return none;
     }
-    let h = sum_of(&picked);
-    let cp = |h: &[f64], extra_df: f64| -> Option<(f64, Smoothed)> {
-        let rest: Vec<f64> = x.iter().zip(h).map(|(a, b)| a - b).collect();
-        let s = whittaker(&rest, d, lambda).ok()?;
-        let rss: f64 = rest
-            .iter()
-            .zip(&s.signal)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum();
-        Some((rss + 2.0 * sigma * sigma * (s.edf + extra_df), s))
-    };
-    let df_h: f64 = picked.iter().map(|&k| filter(k).sum::<f64>()).sum();
-    // The two smoothers are independent: one thread each.
-    let zero = vec![0.0; n];
-    let (without, with) = std::thread::scope(|s| {
-        let a = s.spawn(|| cp(&zero, 0.0));
-        let b = cp(&h, df_h);
-        (a.join().expect("smoother thread panicked"), b)
+    let alone = || smooth(x);
+    if lines.is_empty() {
+        return Ok((vec![0.0; n], Vec::new(), alone()?));
+    }
+    let sub = |a: &[f64], b: &[f64]| -> Vec<f64> { a.iter().zip(b).map(|(p, q)| p - q).collect() };
+    // S alone runs on its own thread while the carriers are fitted.
+    let (without, with) = std::thread::scope(|scope| {
+        let handle = scope.spawn(alone);
+        let with = (|| -> Result<_, Error> {
+            let carriers: Vec<Carrier> = lines
+                .iter()
+                .map(|&(_, f)| Carrier::new(n, f))
+                .collect::<Result<_, _>>()?;
+            let mut h: Vec<Vec<f64>> = Vec::with_capacity(lines.len());
+            let mut edf = vec![0.0; lines.len()];
+            for (i, &(k, _)) in lines.iter().enumerate() {
+                let mut r = x.to_vec();
+                for (j, mode) in modes.iter().enumerate() {
+                    if strong[j] && j != k {
+                        r = sub(&r, mode);
+                    }
+                }
+                let fit = carriers[i].fit(&r)?;
+                edf[i] = fit.edf;
+                h.push(fit.signal);
+            }
+            let total = |h: &[Vec<f64>]| {
+                let mut t = vec![0.0; n];
+                for hk in h {
+                    for (a, b) in t.iter_mut().zip(hk) {
+                        *a += b;
+                    }
+                }
+                t
+            };
+            for _ in 0..1 {
+                let l = smooth(&sub(x, &total(&h)))?;
+                for i in 0..h.len() {
+                    let mut r = sub(x, &l.signal);
+                    for (j, hj) in h.iter().enumerate() {
+                        if j != i {
+                            r = sub(&r, hj);
+                        }
+                    }
+                    let fit = carriers[i].fit(&r)?;
+                    edf[i] = fit.edf;
+                    h[i] = fit.signal;
+                }
+            }
+            let hsum = total(&h);
+            let l = smooth(&sub(x, &hsum))?;
+            Ok((hsum, l, edf))
+        })();
+        (handle.join().expect("smoother thread panicked"), with)
     });
-    match (without, with) {
-        (Some((a, _)), Some((b, s))) if b < a => (h, picked, Some(s)),
-        (Some((_, s)), _) => (vec![0.0; n], Vec::new(), Some(s)),
-        _ => none,
+    let without = without?;
+    let (hsum, l, edf) = with?;
+    let rss = |est: &dyn Fn(usize) -> f64| (0..n).map(|t| (x[t] - est(t)).powi(2)).sum::<f64>();
+    let cp_without = rss(&|t| without.signal[t]) + 2.0 * sigma * sigma * without.edf;
+    let df_h: f64 = lines
+        .iter()
+        .zip(&edf)
+        .map(|(&(_, f), e)| match order_1d {
+            Some(d) => (1.0 - smoother_gain(&l, d, f)) * e,
+            None => *e,
+        })
+        .sum();
+    let cp_with = rss(&|t| l.signal[t] + hsum[t]) + 2.0 * sigma * sigma * (l.edf + df_h);
+    if cp_with < cp_without {
+        let bands = lines
+            .iter()
+            .zip(&edf)
+            .map(|(&(mode, frequency), &edf)| NarrowBand {
+                mode,
+                frequency,
+                edf,
+            })
+            .collect();
+        Ok((hsum, bands, l))
+    } else {
+        Ok((vec![0.0; n], Vec::new(), without))
     }
 }

@@ -9,6 +9,7 @@ use super::field2d::{MAX_SIDE_2D, Order, check_grid, flatten, unflatten, whittak
 use super::screen::{screen, sum_selected};
 use super::vmd::{VmdParams, choose_k, vmd};
 use super::wavelet::{Wavelet, denoise};
+use super::whittaker::Smoothed;
 use serde::{Deserialize, Serialize};
 
 /// Decomposition method (CONTRACT "Decomposition"). `coarse_to_fine` is the default; the
@@ -143,22 +144,21 @@ pub fn decompose(
             if let (true, Some((nu, nv))) = (two_d, grid) {
                 // Refinement on the field: narrow-band modes found along the serpentine
                 // path, the rest smoothed in 2-D.
-                let (h, picked, _) = narrow_band_part(
-                    &flat,
-                    &r.vmd_modes,
-                    &r.vmd_omega,
-                    &r.vmd_strong,
-                    p.vmd.alpha,
-                    d,
-                    None,
-                );
-                let h_grid = unflatten(&h, nu, nv, Order::Serpentine);
-                let rest: Vec<f64> = x.iter().zip(&h_grid).map(|(a, b)| a - b).collect();
-                let s = whittaker_2d(&rest, nu, nv, d, p.lambda)?;
-                let sys: Vec<f64> = s.signal.iter().zip(&h_grid).map(|(a, b)| a + b).collect();
+                let lambda = p.lambda;
+                let smooth = move |r: &[f64]| -> Result<Smoothed, Error> {
+                    let grid = unflatten(r, nu, nv, Order::Serpentine);
+                    let s = whittaker_2d(&grid, nu, nv, d, lambda)?;
+                    Ok(Smoothed {
+                        signal: flatten(&s.signal, nu, nv, Order::Serpentine),
+                        ..s
+                    })
+                };
+                let (h, bands, s) =
+                    narrow_band_part(&flat, &r.vmd_modes, &r.vmd_strong, None, &smooth)?;
+                r.systematic = s.signal.iter().zip(&h).map(|(a, b)| a + b).collect();
                 r.refine = Some(s);
-                r.narrow_band_modes = picked;
-                r.systematic = flatten(&sys, nu, nv, Order::Serpentine);
+                r.narrow_band_modes = bands.iter().map(|b| b.mode).collect();
+                r.narrow_band = bands;
             }
             let sys = std::mem::take(&mut r.systematic);
             if params.full_components {

@@ -1,6 +1,7 @@
 //! Machining-error decomposition (seed 002): VMD, EMD, wavelet denoising, penalised
 //! smoothing, correlation screening and the coarse-to-fine pipeline, in 1-D and on 2-D grids.
 
+pub mod carrier;
 pub mod coarse_to_fine;
 pub mod decompose;
 pub mod emd;
