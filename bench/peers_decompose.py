@@ -14,6 +14,7 @@ vmdpy keeps every iterate (2.2 GB at n = 20000, 28 GB at 250000), so above 20000
 peer VMD is a two-iterate NumPy transcription of vmdpy's arithmetic (as the REPORT's
 `vmd_lean`). BLAS threads are pinned to 1 as the REPORT advises for stable timings.
 """
+import importlib.util
 import json, os, subprocess, sys, tempfile, time
 
 os.environ.setdefault("OPENBLAS_NUM_THREADS", "1")
@@ -21,7 +22,6 @@ os.environ.setdefault("OMP_NUM_THREADS", "1")
 
 
 def ensure(pkgs):
-    import importlib
     missing = [pip for mod, pip in pkgs if importlib.util.find_spec(mod) is None]
     if missing:
         subprocess.check_call([sys.executable, "-m", "pip", "install", "-q", *missing])

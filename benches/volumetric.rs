@@ -89,9 +89,17 @@ fn table(title: &str, family: ShapeFamily, sag_mm: f64, seeds: &[u64]) {
                 .map(|(a, b)| a / b)
                 .collect();
             let name = if *kind == ModelKind::Auto {
-                let mut c: Vec<&str> = r.chosen.iter().map(|k| k.name()).collect();
-                c.dedup();
-                format!("auto → {}", c.join("/"))
+                // how often each kind was picked, most often first
+                let mut counts: Vec<(&str, usize)> = Vec::new();
+                for k in &r.chosen {
+                    match counts.iter_mut().find(|(n, _)| *n == k.name()) {
+                        Some(c) => c.1 += 1,
+                        None => counts.push((k.name(), 1)),
+                    }
+                }
+                counts.sort_by(|a, b| b.1.cmp(&a.1));
+                let c: Vec<String> = counts.iter().map(|(n, c)| format!("{n} {c}")).collect();
+                format!("auto → {}", c.join(", "))
             } else if *kind == ModelKind::Hybrid {
                 let part = match residual {
                     ResidualKind::Spline => "spline",
@@ -278,7 +286,11 @@ fn information_floor(seeds: &[u64]) {
 
 fn main() {
     let quick = std::env::args().any(|a| a == "quick");
-    let seeds: Vec<u64> = if quick { vec![1, 2] } else { (1..=6).collect() };
+    let seeds: Vec<u64> = if quick {
+        vec![1, 2]
+    } else {
+        (1..=20).collect()
+    };
     if std::env::args().any(|a| a == "seed004") {
         seed_004(&seeds[..3.min(seeds.len())]);
         return;

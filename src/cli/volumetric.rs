@@ -24,7 +24,7 @@ pub struct Args {
     #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
     pub tool_offset: String,
     /// Highest polynomial degree of the ISO 230-1 error motions.
-    #[arg(long, default_value_t = 4)]
+    #[arg(long, default_value_t = 5)]
     pub degree: usize,
     /// Controller table limit, points per axis (trilinear model and table export).
     #[arg(long)]

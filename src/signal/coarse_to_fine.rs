@@ -361,7 +361,11 @@ pub fn narrow_band_part(
         (handle.join().expect("smoother thread panicked"), with)
     });
     let without = without?;
-    let (hsum, l, edf) = with?;
+    // A carrier that cannot be fitted (e.g. a singular envelope design on a tiny record)
+    // only means there is no narrow-band part: the smoother alone is the answer.
+    let Ok((hsum, l, edf)) = with else {
+        return Ok((vec![0.0; n], Vec::new(), without));
+    };
     let rss = |est: &dyn Fn(usize) -> f64| (0..n).map(|t| (x[t] - est(t)).powi(2)).sum::<f64>();
     let cp_without = rss(&|t| without.signal[t]) + 2.0 * sigma * sigma * without.edf;
     let df_h: f64 = lines
