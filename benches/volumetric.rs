@@ -97,7 +97,7 @@ fn table(title: &str, family: ShapeFamily, sag_mm: f64, seeds: &[u64]) {
                         None => counts.push((k.name(), 1)),
                     }
                 }
-                counts.sort_by(|a, b| b.1.cmp(&a.1));
+                counts.sort_by_key(|c| std::cmp::Reverse(c.1));
                 let c: Vec<String> = counts.iter().map(|(n, c)| format!("{n} {c}")).collect();
                 format!("auto → {}", c.join(", "))
             } else if *kind == ModelKind::Hybrid {
