@@ -22,6 +22,7 @@
 //! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check.
 
 pub mod api;
+pub mod bspline;
 pub mod cli;
 pub mod compensation;
 pub mod config;

@@ -23,7 +23,7 @@ pub struct Args {
     /// Tool (or reflector) offset from the Z carriage, mm: "x,y,z".
     #[arg(long, default_value = "0,0,0", allow_hyphen_values = true)]
     pub tool_offset: String,
-    /// Highest polynomial degree of the ISO 230-1 error motions.
+    /// Terms per ISO 230-1 error motion minus one (as a polynomial degree; splines from 4).
     #[arg(long, default_value_t = 5)]
     pub degree: usize,
     /// Controller table limit, points per axis (trilinear model and table export).

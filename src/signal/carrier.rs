@@ -16,6 +16,7 @@
 
 use super::error::{Error, check_signal};
 use super::whittaker::minimise_log_lambda;
+use crate::bspline::uniform_cubic;
 use nalgebra::{DMatrix, DVector};
 use realfft::RealFftPlanner;
 
@@ -51,24 +52,10 @@ pub struct Carrier {
     eig_values: DVector<f64>,
 }
 
-/// Cubic B-spline weights at local coordinate u ∈ [0, 1) of an interval (uniform knots).
-fn cubic_weights(u: f64) -> [f64; 4] {
-    let v = 1.0 - u;
-    [
-        v * v * v / 6.0,
-        (3.0 * u * u * u - 6.0 * u * u + 4.0) / 6.0,
-        (-3.0 * u * u * u + 3.0 * u * u + 3.0 * u + 1.0) / 6.0,
-        u * u * u / 6.0,
-    ]
-}
-
 impl Carrier {
     /// Interval index, local coordinate and the carrier's (cos, sin) at sample t.
     fn row(&self, t: usize) -> (usize, [f64; 4], f64, f64) {
-        let intervals = self.m - 3;
-        let pos = t as f64 * intervals as f64 / (self.n - 1).max(1) as f64;
-        let j = (pos.floor() as usize).min(intervals - 1);
-        let w = cubic_weights(pos - j as f64);
+        let (j, w) = uniform_cubic(t as f64, [0.0, (self.n - 1) as f64], self.m - 3);
         (j, w, self.cos[t], self.sin[t])
     }
 

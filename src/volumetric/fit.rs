@@ -20,8 +20,8 @@ pub struct FitOptions {
     pub model: ModelKind,
     /// Abbe offset of the tool tip (or tracker reflector) from the Z carriage (mm).
     pub tool_offset_mm: [f64; 3],
-    /// Highest Legendre degree of the ISO 230-1 error motions (default 5; capped per axis at
-    /// the number of distinct node positions − 1).
+    /// Terms per ISO 230-1 error motion minus one, as a polynomial degree (default 5; capped
+    /// per axis at the number of distinct node positions − 1; see [`KinematicModel::fit`]).
     pub degree: usize,
     /// Controller table-size limit for the trilinear model (points per axis).
     pub max_points_per_axis: Option<usize>,
@@ -91,7 +91,11 @@ pub struct Prediction {
     pub out_of_box: Vec<bool>,
 }
 
-const FORMAT_VERSION: u32 = 1;
+/// Version 2 (session 3): kinematic models name their error-motion basis (`spline` for new
+/// fits); version-1 maps have none and are read as Legendre series, as they were written.
+const FORMAT_VERSION: u32 = 2;
+/// Oldest map version this build still reads.
+const OLDEST_READABLE: u32 = 1;
 
 /// Held-out node sets. On a full grid: whole interior planes (x-, y- or z-levels) —
 /// every remaining set is still a grid, so trilinear can be scored, and a held-out
@@ -373,9 +377,9 @@ impl VolumetricMap {
     pub fn from_bytes(bytes: &[u8]) -> Result<VolumetricMap, Error> {
         let m: VolumetricMap =
             serde_json::from_slice(bytes).map_err(|e| Error::ModelFormat(e.to_string()))?;
-        if m.version != FORMAT_VERSION {
+        if !(OLDEST_READABLE..=FORMAT_VERSION).contains(&m.version) {
             return Err(Error::ModelFormat(format!(
-                "version {} (this build reads {FORMAT_VERSION})",
+                "version {} (this build reads {OLDEST_READABLE} to {FORMAT_VERSION})",
                 m.version
             )));
         }
@@ -648,6 +652,43 @@ mod tests {
         let e = map.error_at([5.0, 6.0, 7.0]);
         let dev = normal_deviation(&map, &[[5.0, 6.0, 7.0]], &[n]);
         assert!((dev[0] - (e[1] * 0.6 + e[2] * 0.8)).abs() < 1e-15);
+    }
+
+    #[test]
+    fn version_1_maps_are_read_as_legendre_series() {
+        use crate::volumetric::MotionBasis;
+        let m = SyntheticMachine::new(2, ShapeFamily::TrendAndWaviness);
+        let d = m.measure_grid([7, 6, 5], 1);
+        let map = fit(&d, &quick(ModelKind::Kinematic, &m)).unwrap();
+        let Model::Kinematic(k) = &map.model else {
+            panic!("asked for kinematic")
+        };
+        assert_eq!(k.basis, MotionBasis::Spline);
+        // the same coefficients read as a Legendre series: what a version-1 file meant
+        let mut old = map.clone();
+        if let Model::Kinematic(k) = &mut old.model {
+            k.basis = MotionBasis::Legendre;
+        }
+        if let Some(c) = old.components.as_mut() {
+            c.basis = MotionBasis::Legendre;
+        }
+        fn strip(v: &mut serde_json::Value) {
+            match v {
+                serde_json::Value::Object(o) => {
+                    o.remove("basis");
+                    o.values_mut().for_each(strip);
+                }
+                serde_json::Value::Array(a) => a.iter_mut().for_each(strip),
+                _ => {}
+            }
+        }
+        let mut v: serde_json::Value = serde_json::from_slice(&old.to_bytes()).unwrap();
+        strip(&mut v);
+        v["version"] = 1.into();
+        let back = VolumetricMap::from_bytes(&serde_json::to_vec(&v).unwrap()).unwrap();
+        let q = [123.0, 234.0, 345.0];
+        assert_eq!(back.error_at(q), old.error_at(q));
+        assert_ne!(back.error_at(q), map.error_at(q));
     }
 
     #[test]

@@ -3,6 +3,7 @@
 use super::Error;
 use super::data::{Bounds, VolumetricData};
 use super::lsq::LeastSquares;
+use super::motion_basis::MotionBasis;
 use serde::{Deserialize, Serialize};
 
 /// ISO 230-1 names of the six error motions of each axis, in the order the model
@@ -19,20 +20,24 @@ pub const SQUARENESS_NAMES: [&str; 3] = ["EC0Y", "EB0Z", "EA0Z"];
 
 /// The fitted 21-parameter rigid-body model.
 ///
-/// Each of the 18 error motions is a Legendre series in the normalised axis position
-/// `s = 2(q − q_min)/(q_max − q_min) − 1`; translations in mm, rotations in rad.
+/// Each of the 18 error motions is a series in the normalised axis position
+/// `s = 2(q − q_min)/(q_max − q_min) − 1` over the terms of `basis` (constant, line, then
+/// curved terms); translations in mm, rotations in rad.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct KinematicModel {
     /// Abbe offset of the tool tip from the Z carriage's reference point (mm).
     pub tool_offset_mm: [f64; 3],
     /// Axis ranges used to normalise positions (mm).
     pub range: [[f64; 2]; 3],
-    /// Highest Legendre degree per axis.
+    /// Highest term (polynomial degree) per axis.
     pub degree: [usize; 3],
+    /// The terms' basis: `spline` for new fits, `legendre` for maps saved before it existed.
+    #[serde(default)]
+    pub basis: MotionBasis,
     /// Constant error at every point (mm): the reference offset.
     pub offset_mm: [f64; 3],
-    /// `coef[axis][function]`: Legendre coefficients of degrees `first_degree(axis,
-    /// function) ..= degree[axis]` (mm or rad).
+    /// `coef[axis][function]`: coefficients of terms `first_degree(axis, function) ..=
+    /// degree[axis]` of `basis` (mm or rad).
     pub coef: [[Vec<f64>; 6]; 3],
     /// Whether the data could identify each error motion (false: fixed to 0).
     pub identified: [[bool; 6]; 3],
@@ -48,7 +53,7 @@ pub struct KinematicModel {
     pub effective_parameters: f64,
 }
 
-/// Lowest Legendre degree of each error motion. Constants are the single `offset_mm`;
+/// Lowest term (degree) of each error motion. Constants are the single `offset_mm`;
 /// linear trends that are rotations of the whole frame go to squareness (Y's and Z's
 /// straightness perpendicular to X and Z's towards Y start at degree 2, as ISO 230-1
 /// removes the reference straight line); constant tilts of a carriage are squareness
@@ -57,19 +62,6 @@ pub fn first_degree(axis: usize, function: usize) -> usize {
     match (axis, function) {
         (1, 0) | (2, 0) | (2, 1) => 2,
         _ => 1,
-    }
-}
-
-/// Legendre polynomials `P_0..=P_n` at `s` (Bonnet's recursion; three lines, no crate).
-fn legendre(s: f64, n: usize, out: &mut Vec<f64>) {
-    out.clear();
-    out.push(1.0);
-    if n >= 1 {
-        out.push(s);
-    }
-    for k in 1..n {
-        let p = ((2 * k + 1) as f64 * s * out[k] - k as f64 * out[k - 1]) / (k + 1) as f64;
-        out.push(p);
     }
 }
 
@@ -132,8 +124,11 @@ enum Column {
 
 impl KinematicModel {
     /// Fits the model by linear least squares (first-order small-angle kinematics).
-    /// Every error motion is a Legendre series up to degree `min(degree, levels − 1)`
-    /// of its axis (levels = distinct node positions on that axis).
+    /// Every error motion is a series of `min(degree, levels − 1) + 1` terms of its axis
+    /// position (levels = distinct node positions on that axis): constant, line, then
+    /// curved terms of the cubic regression-spline basis ([`MotionBasis::Spline`]; the
+    /// cubic polynomials when there are at most 4 terms), the curved terms penalised by
+    /// their roughness with one multiplier chosen by GCV.
     ///
     /// Model (serial chain base→X→Y→Z→tool, small angles, Reference: ISO 230-1:2012
     /// Annex A; Ramesh, Mannan & Poo, Int. J. Mach. Tools Manuf. 40 (2000) 1235):
@@ -211,6 +206,7 @@ impl KinematicModel {
             tool_offset_mm,
             range,
             degree: cap,
+            basis: MotionBasis::Spline,
             offset_mm: [0.0; 3],
             coef: Default::default(),
             identified: [[false; 6]; 3],
@@ -226,7 +222,9 @@ impl KinematicModel {
         let mut row = Vec::with_capacity(cols.len());
         for (p, e) in data.nodes.iter().zip(&data.errors) {
             for k in 0..3 {
-                legendre(model.normalise(k, p[k]), cap[k], &mut basis[k]);
+                model
+                    .basis
+                    .values(model.normalise(k, p[k]), cap[k], &mut basis[k]);
             }
             for (c, col) in cols.iter().enumerate() {
                 contrib[c] = match *col {
@@ -255,12 +253,12 @@ impl KinematicModel {
                 ls.add(&row, e[j]);
             }
         }
-        // smoothness prior on the higher Legendre terms, ~ the P_d eigenvalue d(d+1) squared
+        // smoothness prior on the curved terms: their roughness relative to the first
         let weights: Vec<f64> = cols
             .iter()
             .map(|c| match *c {
-                Column::Motion { degree, .. } if degree >= 2 => {
-                    ((degree * (degree + 1)) as f64 / 6.0).powi(2)
+                Column::Motion { axis, degree, .. } if degree >= 2 => {
+                    model.basis.weight(cap[axis], degree)
                 }
                 _ => 0.0,
             })
@@ -300,7 +298,7 @@ impl KinematicModel {
     pub fn motion(&self, axis: usize, function: usize, q: f64) -> f64 {
         let s = self.normalise(axis, q).clamp(-1.0, 1.0);
         let mut p = Vec::new();
-        legendre(s, self.degree[axis], &mut p);
+        self.basis.values(s, self.degree[axis], &mut p);
         let first = first_degree(axis, function);
         self.coef[axis][function]
             .iter()
@@ -318,7 +316,8 @@ impl KinematicModel {
         let mut e = self.offset_mm;
         let mut basis = Vec::new();
         for axis in 0..3 {
-            legendre(self.normalise(axis, p[axis]), self.degree[axis], &mut basis);
+            self.basis
+                .values(self.normalise(axis, p[axis]), self.degree[axis], &mut basis);
             for function in 0..6 {
                 let first = first_degree(axis, function);
                 let v: f64 = self.coef[axis][function]
@@ -356,16 +355,6 @@ impl KinematicModel {
 #[cfg(test)]
 mod tests {
     use super::*;
-
-    #[test]
-    fn legendre_matches_closed_forms() {
-        let mut p = Vec::new();
-        legendre(0.3, 4, &mut p);
-        let s: f64 = 0.3;
-        assert!((p[2] - 0.5 * (3.0 * s * s - 1.0)).abs() < 1e-15);
-        assert!((p[3] - 0.5 * (5.0 * s.powi(3) - 3.0 * s)).abs() < 1e-15);
-        assert!((p[4] - (35.0 * s.powi(4) - 30.0 * s * s + 3.0) / 8.0).abs() < 1e-15);
-    }
 
     use crate::volumetric::{ShapeFamily, SyntheticMachine};
 

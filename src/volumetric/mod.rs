@@ -9,6 +9,7 @@ mod hybrid;
 mod kinematic;
 mod lsq;
 mod model;
+mod motion_basis;
 mod network;
 mod pspline;
 mod synthetic;
@@ -23,6 +24,7 @@ pub use fit::{FitOptions, ModelScore, Prediction, VolumetricMap, fit, folds, nor
 pub use hybrid::{HybridModel, ResidualKind};
 pub use kinematic::{FUNCTION_NAMES, KinematicModel, SQUARENESS_NAMES, first_degree};
 pub use model::{Model, ModelKind};
+pub use motion_basis::MotionBasis;
 pub use network::{NetworkMap, NetworkOptions};
 pub use pspline::{SmoothingSpline3, default_pieces};
 pub use synthetic::{ShapeFamily, SyntheticMachine};

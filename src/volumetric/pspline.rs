@@ -36,24 +36,8 @@ pub struct SmoothingSpline3 {
 
 /// Values of the four nonzero uniform cubic B-splines at `q` (mm) on `[a, b]` cut into
 /// `pieces` intervals, and the index of the first of them.
-fn basis(q: f64, [a, b]: [f64; 2], pieces: usize) -> (usize, [f64; 4]) {
-    let u = if b > a {
-        ((q - a) / (b - a) * pieces as f64).clamp(0.0, pieces as f64)
-    } else {
-        0.0
-    };
-    let j = (u.floor() as usize).min(pieces - 1);
-    let t = u - j as f64;
-    let s = 1.0 - t;
-    (
-        j,
-        [
-            s * s * s / 6.0,
-            (3.0 * t * t * t - 6.0 * t * t + 4.0) / 6.0,
-            (-3.0 * t * t * t + 3.0 * t * t + 3.0 * t + 1.0) / 6.0,
-            t * t * t / 6.0,
-        ],
-    )
+fn basis(q: f64, range: [f64; 2], pieces: usize) -> (usize, [f64; 4]) {
+    crate::bspline::uniform_cubic(q, range, pieces)
 }
 
 /// `D₂ᵀD₂` for `n` coefficients (second differences), dense.
