@@ -110,7 +110,7 @@ fn table(title: &str, family: ShapeFamily, sag_mm: f64, seeds: &[u64]) {
                 kind.name().to_string()
             };
             println!(
-                "| {}×{}×{} | {} | {:.2} | {:.2} | {:.0} | {:.2}, {:.2} | {:.3} | {:.1} |",
+                "| {}×{}×{} | {} | {:.2} | {:.2} | {:.0} | {:.3}, {:.3} | {:.3} | {:.1} |",
                 grid[0],
                 grid[1],
                 grid[2],
