@@ -55,6 +55,11 @@ async fn fit_predict_and_describe(app: TestApp) {
     let body: Value = r.json().await.unwrap();
     assert_eq!(body["model"], "kinematic");
     assert!(body["residual"].is_null(), "{body}");
+    // the error motions' representation: cubic regression splines for new maps
+    assert_eq!(body["error_motions"]["basis"], "spline", "{body}");
+    let terms = body["error_motions"]["terms_per_axis"].as_array().unwrap();
+    assert_eq!(terms.len(), 3);
+    assert!(terms.iter().all(|t| (2..=6).contains(&t.as_u64().unwrap())), "{terms:?}");
     let kinematic_count = body["parameter_count"].as_u64().unwrap();
     assert!(
         hybrid_counts.iter().all(|&c| c > kinematic_count),

@@ -218,9 +218,19 @@ fn summary(map: &VolumetricMap) -> serde_json::Value {
         },
         _ => None,
     };
+    // how the ISO 230-1 error motions are represented (the kinematic part, when fitted)
+    let error_motions = map.components.as_ref().map(|k| {
+        json!({
+            "basis": k.basis,
+            "terms_per_axis": k.degree.map(|d| d + 1),
+            "smoothing": k.smoothing,
+            "effective_parameters": k.effective_parameters,
+        })
+    });
     json!({
         "model": map.model.kind().name(),
         "residual": residual,
+        "error_motions": error_motions,
         "requested": map.options.model.name(),
         "parameter_count": map.model.parameter_count(),
         "n_nodes": map.n_nodes,
