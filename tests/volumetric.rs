@@ -59,7 +59,10 @@ async fn fit_predict_and_describe(app: TestApp) {
     assert_eq!(body["error_motions"]["basis"], "spline", "{body}");
     let terms = body["error_motions"]["terms_per_axis"].as_array().unwrap();
     assert_eq!(terms.len(), 3);
-    assert!(terms.iter().all(|t| (2..=6).contains(&t.as_u64().unwrap())), "{terms:?}");
+    assert!(
+        terms.iter().all(|t| (2..=6).contains(&t.as_u64().unwrap())),
+        "{terms:?}"
+    );
     let kinematic_count = body["parameter_count"].as_u64().unwrap();
     assert!(
         hybrid_counts.iter().all(|&c| c > kinematic_count),
