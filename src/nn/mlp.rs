@@ -143,6 +143,14 @@ impl Mlp {
     }
 
     fn check_input(&self, x: &[f64]) -> Result<usize> {
+        let n = self.rows(x)?;
+        check_finite("network input", x)?;
+        Ok(n)
+    }
+
+    /// Samples in a row-major input `x`; an error if its length is not a multiple of the
+    /// input size.
+    pub(crate) fn rows(&self, x: &[f64]) -> Result<usize> {
         let ni = self.n_inputs();
         if x.len() % ni != 0 {
             return Err(Error::Shape {
@@ -151,7 +159,6 @@ impl Mlp {
                 got: x.len(),
             });
         }
-        check_finite("network input", x)?;
         Ok(x.len() / ni)
     }
 

@@ -102,7 +102,7 @@ impl Regressor {
     /// outputs unscaled in f64. Reference: seed 000 eqs. (2), (3), (7).
     /// Errors: wrong length, non-finite inputs.
     pub fn predict(&self, x: &[f64]) -> Result<Vec<f64>> {
-        let n = self.check_shape(x)?;
+        let n = self.mlp.rows(x)?;
         let mut y = vec![0.0; n * self.n_outputs()];
         if !self.fast.forward(x, &mut y) {
             check_finite("network input", x)?;
@@ -114,7 +114,7 @@ impl Regressor {
     /// Like [`Regressor::predict`], over up to `threads` threads (0 = all cores); worth it
     /// from about 10,000 samples.
     pub fn predict_parallel(&self, x: &[f64], threads: usize) -> Result<Vec<f64>> {
-        let n = self.check_shape(x)?;
+        let n = self.mlp.rows(x)?;
         let threads = crate::parallel::resolve_threads(threads);
         let (ni, no) = (self.n_inputs(), self.n_outputs());
         let mut y = vec![0.0; n * no];
@@ -134,18 +134,6 @@ impl Regressor {
         }
         self.finish(&mut y);
         Ok(y)
-    }
-
-    fn check_shape(&self, x: &[f64]) -> Result<usize> {
-        let ni = self.n_inputs();
-        if x.len() % ni != 0 {
-            return Err(Error::Shape {
-                what: "network input (multiple of the input size)",
-                expected: ni,
-                got: x.len(),
-            });
-        }
-        Ok(x.len() / ni)
     }
 
     fn finish(&self, y: &mut [f64]) {

@@ -17,6 +17,7 @@
 use super::error::{Error, check_signal};
 use super::whittaker::minimise_log_lambda;
 use crate::bspline::uniform_cubic;
+use crate::geometry::brent_minimize;
 use nalgebra::{DMatrix, DVector};
 use realfft::RealFftPlanner;
 
@@ -258,8 +259,8 @@ pub fn hann_power(r: &[f64], f: f64) -> f64 {
 }
 
 /// The strongest spectral line of `r` at frequencies ≥ [`MIN_PERIODS`]/n: the largest
-/// interior local maximum of its Hann periodogram (4× zero-padded FFT), refined by golden
-/// section on [`hann_power`] to ±1/(8n). Returns (f, power) or None when the record is too
+/// interior local maximum of its Hann periodogram (4× zero-padded FFT), refined by Brent's
+/// method on [`hann_power`]. Returns (f, power) or None when the record is too
 /// short. An interior maximum is required so that the skirt of a trend is not taken for a line.
 pub fn strongest_line(r: &[f64]) -> Option<(f64, f64)> {
     let n = r.len();
@@ -287,27 +288,11 @@ pub fn strongest_line(r: &[f64]) -> Option<(f64, f64)> {
         }
     }
     let (b, _) = best?;
-    let (mut lo, mut hi) = ((b as f64 - 1.0) / len as f64, (b as f64 + 1.0) / len as f64);
-    let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut c, mut d) = (hi - g * (hi - lo), lo + g * (hi - lo));
-    let (mut fc, mut fd) = (hann_power(r, c), hann_power(r, d));
-    for _ in 0..20 {
-        if fc > fd {
-            hi = d;
-            d = c;
-            fd = fc;
-            c = hi - g * (hi - lo);
-            fc = hann_power(r, c);
-        } else {
-            lo = c;
-            c = d;
-            fc = fd;
-            d = lo + g * (hi - lo);
-            fd = hann_power(r, d);
-        }
-    }
-    let f = 0.5 * (lo + hi);
-    Some((f, hann_power(r, f)))
+    // Refine within ±1 padded bin: maximise the power by Brent's method (the project's one
+    // 1-D minimiser), to 1/(1000 n) in frequency.
+    let (lo, hi) = ((b as f64 - 1.0) / len as f64, (b as f64 + 1.0) / len as f64);
+    let (f, neg_power) = brent_minimize(|f| -hann_power(r, f), lo, hi, 1e-3 / n as f64, 60);
+    Some((f, -neg_power))
 }
 
 #[cfg(test)]

@@ -8,6 +8,7 @@
 
 use super::Error;
 use super::data::{Bounds, VolumetricData};
+use crate::bspline::uniform_cubic;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
@@ -32,12 +33,6 @@ pub struct SmoothingSpline3 {
     pub lambda: f64,
     /// Effective degrees of freedom per component, `tr(H)`.
     pub effective_parameters: f64,
-}
-
-/// Values of the four nonzero uniform cubic B-splines at `q` (mm) on `[a, b]` cut into
-/// `pieces` intervals, and the index of the first of them.
-fn basis(q: f64, range: [f64; 2], pieces: usize) -> (usize, [f64; 4]) {
-    crate::bspline::uniform_cubic(q, range, pieces)
 }
 
 /// `D₂ᵀD₂` for `n` coefficients (second differences), dense.
@@ -151,9 +146,9 @@ impl SmoothingSpline3 {
         val: &mut Vec<f64>,
     ) {
         let nb = pieces.map(|q| q + 3);
-        let bx = basis(p[0], range[0], pieces[0]);
-        let by = basis(p[1], range[1], pieces[1]);
-        let bz = basis(p[2], range[2], pieces[2]);
+        let bx = uniform_cubic(p[0], range[0], pieces[0]);
+        let by = uniform_cubic(p[1], range[1], pieces[1]);
+        let bz = uniform_cubic(p[2], range[2], pieces[2]);
         idx.clear();
         val.clear();
         for (a, &va) in bx.1.iter().enumerate() {
@@ -230,7 +225,7 @@ mod tests {
     #[test]
     fn basis_is_a_partition_of_unity() {
         for q in [0.0, 13.7, 250.0, 399.9, 400.0, -5.0, 500.0] {
-            let (_, b) = basis(q, [0.0, 400.0], 3);
+            let (_, b) = uniform_cubic(q, [0.0, 400.0], 3);
             assert!((b.iter().sum::<f64>() - 1.0).abs() < 1e-14, "{q}");
         }
     }
