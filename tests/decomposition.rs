@@ -337,3 +337,86 @@ async fn large_decomposition_runs_as_a_job() {
     let mid = n / 2;
     assert!((s2[mid] - s[mid]).abs() < 1e-4, "{} vs {}", s2[mid], s[mid]);
 }
+
+/// Probe flyers (CONTRACT v1.1): the upload warns, the decomposition names them, and the
+/// compensation of every other point stays within 2 µm of the clean upload's.
+async fn probe_flyers_leave_the_compensation_alone(app: TestApp) {
+    let n = 41;
+    seed_machine_and_surface(&app, "m1", "s1", n, n).await;
+    let clean = field(n, n);
+    let flyers = [(0usize, 2.0f64), (20 * n + 20, -1.5), (33 * n + 7, 0.8)];
+    let mut dirty = clean.clone();
+    for (k, d) in flyers {
+        dirty[k] += d;
+    }
+    let base = "/v1/machines/m1/surfaces/s1/measurements";
+    let r = app
+        .post_json(base, &json!({"id": "clean", "deviations": clean}))
+        .await;
+    assert_eq!(r.status(), 201);
+    let b: Value = r.json().await.unwrap();
+    assert_eq!(b["outliers"], json!([]));
+    assert_eq!(b["warnings"], json!([]));
+    let r = app
+        .post_json(base, &json!({"id": "chip", "deviations": dirty}))
+        .await;
+    assert_eq!(r.status(), 201);
+    let b: Value = r.json().await.unwrap();
+    let want = json!(
+        [0, 33 * n + 7, 20 * n + 20]
+            .iter()
+            .copied()
+            .collect::<std::collections::BTreeSet<usize>>()
+    );
+    assert_eq!(b["outliers"], want, "{b}");
+    let w = b["warnings"][0].as_str().expect("a warning");
+    assert!(
+        w.contains("3 point(s) look like probe flyers") && w.contains("+2.0"),
+        "{w}"
+    );
+
+    let mut offsets = Vec::new();
+    for id in ["clean", "chip"] {
+        let r = app
+            .post_json(&format!("{base}/{id}/decomposition"), &json!({}))
+            .await;
+        assert_eq!(r.status(), 200);
+        let d: Value = r.json().await.unwrap();
+        if id == "chip" {
+            assert_eq!(d["outliers"], want);
+        } else {
+            assert_eq!(d["outliers"], json!([]));
+        }
+        let r = app
+            .get(&format!(
+                "/v1/machines/m1/surfaces/s1/compensation?measurement={id}"
+            ))
+            .await;
+        assert_eq!(r.status(), 200);
+        let c: Value = r.json().await.unwrap();
+        assert_eq!(c["outliers"], d["outliers"]);
+        offsets.push(floats(&c["offsets"]));
+    }
+    let is_flyer = |k: usize| flyers.iter().any(|f| f.0 == k);
+    let worst = (0..n * n)
+        .filter(|&k| !is_flyer(k))
+        .map(|k| (offsets[0][k] - offsets[1][k]).abs())
+        .fold(0.0, f64::max);
+    assert!(worst <= 0.002, "other offsets moved by {worst} mm");
+    // The flyers' own offsets come from their neighbours, not from the chip: near the
+    // noise-free field (the clean upload's own value there follows its noise at a corner).
+    let truth: Vec<f64> = field(n, n)
+        .iter()
+        .enumerate()
+        .map(|(k, v)| v - (((k * 7919) % 1000) as f64 / 1000.0 - 0.5) * 0.01)
+        .collect();
+    for (k, _) in flyers {
+        let got = offsets[1][k];
+        assert!(
+            (got - truth[k]).abs() <= 0.005,
+            "flyer {k}: {got} vs {}",
+            truth[k]
+        );
+    }
+}
+on_both_backends!(probe_flyers_leave_the_compensation_alone);

@@ -69,14 +69,25 @@ async fn offsets(
     id: &str,
     nu: usize,
     nv: usize,
-) -> ApiResult<Vec<f64>> {
+) -> ApiResult<(Vec<f64>, Vec<usize>)> {
     let m = require_measurement(state, machine, surface, id).await?;
     let key = format!("{surface}/{id}");
     if let Some(doc) = state.store.get_doc(machine, DOC_KIND, &key).await? {
         if let Some(arr) = doc.get("systematic").and_then(Value::as_array) {
             let v: Option<Vec<f64>> = arr.iter().map(Value::as_f64).collect();
             if let Some(v) = v.filter(|v| v.len() == nu * nv) {
-                return Ok(v);
+                // Decompositions stored before the flyer screen have no `outliers`.
+                let outliers = doc
+                    .get("outliers")
+                    .and_then(Value::as_array)
+                    .map(|a| {
+                        a.iter()
+                            .filter_map(Value::as_u64)
+                            .map(|k| k as usize)
+                            .collect()
+                    })
+                    .unwrap_or_default();
+                return Ok((v, outliers));
             }
         }
     }
@@ -97,7 +108,7 @@ async fn offsets(
         .jobs
         .run(move || decompose(&devs, Method::CoarseToFine, &params))
         .await??;
-    Ok(d.systematic)
+    Ok((d.systematic, d.outliers))
 }
 
 fn csv(grid: &CompensatedGrid) -> String {
@@ -147,7 +158,7 @@ async fn get_compensation(
         ));
     }
     let surf = require_surface(&state, &machine, &surface).await?;
-    let offs = offsets(&state, &machine, &surface, &id, surf.nu, surf.nv).await?;
+    let (offs, outliers) = offsets(&state, &machine, &surface, &id, surf.nu, surf.nv).await?;
     let radius = if cl {
         match radius.or(surf.tool_radius) {
             Some(r) => Some(r),
@@ -197,5 +208,8 @@ async fn get_compensation(
         )
             .into_response());
     }
-    Ok(ApiJson(grid).into_response())
+    // The flyers (grid indices of the measurement) whose offsets came from their neighbours.
+    let mut body = serde_json::to_value(&grid).map_err(ApiError::internal)?;
+    body["outliers"] = serde_json::json!(outliers);
+    Ok(ApiJson(body).into_response())
 }

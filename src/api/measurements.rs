@@ -16,6 +16,7 @@ use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, check_id, content_type, read_body};
 use super::lookup::{require_measurement, require_surface};
 use super::upload::{ProbeData, deviations_along_normals, parse_csv_upload, parse_json_upload};
+use crate::signal::flyers::{FlyerParams, suspects};
 use crate::store::Measurement;
 
 /// Routes of this resource.
@@ -111,6 +112,16 @@ async fn post_measurement(
         deviations,
         points,
     );
+    let (nu, nv) = (surf.nu, surf.nv);
+    let devs = m.deviations.clone();
+    // Like the parse above, a short blocking task rather than a worker-pool slot: an upload
+    // is never turned away because decompositions fill the pool.
+    let outliers = tokio::task::spawn_blocking(move || {
+        suspects(&devs, Some((nu, nv)), &FlyerParams::default()).0
+    })
+    .await
+    .map_err(ApiError::internal)?;
+    let warnings = flyer_warnings(&outliers, &m.deviations, nu);
     state.store.insert_measurement(&m).await?;
     Ok((
         StatusCode::CREATED,
@@ -118,9 +129,43 @@ async fn post_measurement(
             header::LOCATION,
             format!("/v1/machines/{machine}/surfaces/{surface}/measurements/{id}"),
         )],
-        ApiJson(json!({"id": m.id, "n": m.deviations.len(), "max_abs": m.max_abs, "mean_abs": m.mean_abs})),
+        ApiJson(json!({
+            "id": m.id, "n": m.deviations.len(), "max_abs": m.max_abs, "mean_abs": m.mean_abs,
+            "outliers": outliers, "warnings": warnings,
+        })),
     )
         .into_response())
+}
+
+/// The upload's warning about suspected probe flyers (none when `outliers` is empty).
+fn flyer_warnings(outliers: &[usize], deviations: &[f64], nu: usize) -> Vec<String> {
+    if outliers.is_empty() {
+        return Vec::new();
+    }
+    const SHOWN: usize = 10;
+    let mut list: Vec<String> = outliers
+        .iter()
+        .take(SHOWN)
+        .map(|&k| {
+            format!(
+                "k={k} (iu {}, iv {}) {:+.4} mm",
+                k % nu,
+                k / nu,
+                deviations[k]
+            )
+        })
+        .collect();
+    if outliers.len() > SHOWN {
+        list.push(format!("and {} more", outliers.len() - SHOWN));
+    }
+    vec![format!(
+        "{} point(s) look like probe flyers (a chip, a coolant drop, a missed trigger): they \
+         stand far off their neighbours: {}. The decomposition leaves them out of the \
+         systematic part and fills their compensation from their neighbours; re-probe them \
+         if they are real.",
+        outliers.len(),
+        list.join(", ")
+    )]
 }
 
 async fn get_measurement(

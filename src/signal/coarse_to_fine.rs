@@ -26,6 +26,7 @@ use super::carrier::{Carrier, strongest_line};
 use super::emd::{EmdParams, emd};
 use super::error::{Error, check_signal};
 use super::field2d::Order;
+use super::flyers::FlyerParams;
 use super::screen::{screen, sum_selected};
 use super::vmd::{VmdParams, choose_k, vmd};
 use super::wavelet::{LevelRule, Wavelet, denoise, max_level, median_abs, noise_level};
@@ -84,6 +85,8 @@ pub struct CoarseToFineParams {
     pub nv: Option<usize>,
     /// Include every stage's arrays (VMD modes, X1..X4) in `components`.
     pub full_components: bool,
+    /// The probe-flyer screen run around the decomposition ([`super::flyers`]).
+    pub flyers: FlyerParams,
 }
 
 impl Default for CoarseToFineParams {
@@ -102,6 +105,7 @@ impl Default for CoarseToFineParams {
             nu: None,
             nv: None,
             full_components: false,
+            flyers: FlyerParams::default(),
         }
     }
 }

@@ -6,6 +6,7 @@ use super::coarse_to_fine::{
 use super::emd::emd;
 use super::error::{Error, check_signal};
 use super::field2d::{MAX_SIDE_2D, Order, check_grid, flatten, unflatten, whittaker_2d};
+use super::flyers;
 use super::screen::{screen, sum_selected};
 use super::vmd::{VmdParams, choose_k, vmd};
 use super::wavelet::{Wavelet, denoise};
@@ -82,6 +83,10 @@ pub struct Decomposition {
     pub systematic: Vec<f64>,
     pub random: Vec<f64>,
     pub components: Components,
+    /// Probe flyers found (sample or grid indices k, ascending): left out of the systematic
+    /// part, which there comes from their neighbours; their whole deviation is in `random`
+    /// ([`super::flyers`], CONTRACT v1.1 "Probe flyers").
+    pub outliers: Vec<usize>,
 }
 
 /// Largest accepted signal (CONTRACT: sync up to 250,000 samples; the core takes 4x that).
@@ -92,8 +97,39 @@ pub const MAX_SAMPLES: usize = 1_000_000;
 /// (stage diagnostics) and the refinement smoother on the field itself; the single-method
 /// baselines, being 1-D, read `2d` as serpentine.
 ///
-/// Reference: paper 002; see [`coarse_to_fine`] for the stages. Known bad cases: see there.
+/// Probe flyers (`params.flyers`, on by default) are found and left out first
+/// ([`super::flyers`]): on clean data the answer is the plain decomposition, bit for bit.
+///
+/// Reference: paper 002; see [`coarse_to_fine`] for the stages. Known bad cases: see there
+/// and [`super::flyers`].
 pub fn decompose(
+    x: &[f64],
+    method: Method,
+    params: &DecomposeParams,
+) -> Result<Decomposition, Error> {
+    check_signal(method.as_str(), x, 16)?;
+    params.flyers.validate()?;
+    let grid = match (params.nu, params.nv) {
+        (Some(nu), Some(nv)) if nu.checked_mul(nv) == Some(x.len()) => Some((nu, nv)),
+        _ => None,
+    };
+    let (outliers, mut d) = flyers::robust(
+        x,
+        grid,
+        &params.flyers,
+        |y| decompose_plain(y, method, params),
+        |d| &d.systematic,
+    )?;
+    if !outliers.is_empty() {
+        // The last run saw the filled signal; the random part is against the measured one.
+        d.random = x.iter().zip(&d.systematic).map(|(a, b)| a - b).collect();
+    }
+    d.outliers = outliers;
+    Ok(d)
+}
+
+/// [`decompose`] without the flyer screen.
+fn decompose_plain(
     x: &[f64],
     method: Method,
     params: &DecomposeParams,
@@ -230,6 +266,7 @@ pub fn decompose(
         systematic,
         random,
         components: comps,
+        outliers: Vec::new(),
     })
 }
 

@@ -7,6 +7,7 @@ pub mod decompose;
 pub mod emd;
 pub mod error;
 pub mod field2d;
+pub mod flyers;
 pub mod screen;
 pub mod spline;
 pub mod vmd;
@@ -17,3 +18,4 @@ pub use coarse_to_fine::{CoarseToFineParams, CoarseToFineResult, coarse_to_fine}
 pub use decompose::{Components, DecomposeParams, Decomposition, Method, decompose};
 pub use error::Error;
 pub use field2d::Order;
+pub use flyers::FlyerParams;
