@@ -4,10 +4,10 @@ use serde::{Deserialize, Serialize};
 
 mod lanes;
 
-use super::brent;
 use super::error::{Error, Result, check_points};
 use super::spline::{CubicSpline3, Parameterization};
-use super::vec3::{cross, dot, norm, normalize, scale, sub};
+use crate::numeric::brent;
+use crate::numeric::vec3::{cross, dot, norm, normalize, scale, sub};
 
 /// One step of a tool path: two ball centres (CL points) and the cutter-contact curve between
 /// their contact points, as points in feed order, first and last included (mm).
@@ -545,7 +545,7 @@ pub fn step_errors(
     segments: &[StepErrorSegment],
     threads: usize,
 ) -> Result<Vec<StepError>> {
-    let threads = crate::parallel::resolve_threads(threads);
+    let threads = crate::numeric::parallel::resolve_threads(threads);
     let per = segments.len().div_ceil(threads.max(1)).max(1024);
     let run = |offset: usize, segs: &[StepErrorSegment]| -> Result<Vec<StepError>> {
         StepErrorSolver::default()

@@ -128,7 +128,7 @@ impl Mlp {
     /// machine's available parallelism). Worth it from about 10,000 samples.
     pub fn predict_parallel(&self, x: &[f64], threads: usize) -> Result<Vec<f64>> {
         let n = self.check_input(x)?;
-        let threads = crate::parallel::resolve_threads(threads);
+        let threads = crate::numeric::parallel::resolve_threads(threads);
         let (ni, no) = (self.n_inputs(), self.n_outputs());
         let mut out = vec![0.0; n * no];
         let per = n.div_ceil(threads.max(1)).max(4096);

@@ -115,7 +115,7 @@ impl Regressor {
     /// from about 10,000 samples.
     pub fn predict_parallel(&self, x: &[f64], threads: usize) -> Result<Vec<f64>> {
         let n = self.mlp.rows(x)?;
-        let threads = crate::parallel::resolve_threads(threads);
+        let threads = crate::numeric::parallel::resolve_threads(threads);
         let (ni, no) = (self.n_inputs(), self.n_outputs());
         let mut y = vec![0.0; n * no];
         let per = n.div_ceil(threads.max(1)).max(4096);
@@ -290,7 +290,7 @@ mod tests {
     /// weights and the labels' scaler (R - Lmin, Lmax - R in µm). Bound: 1e-4 µm.
     #[test]
     fn f32_path_matches_f64_on_study_data() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/reference/step/");
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/step/");
         let main = std::fs::read_to_string(format!("{dir}testvectors.csv")).expect("vectors");
         let pm = std::fs::read_to_string(format!("{dir}testvectors_pm.csv")).expect("vectors");
         let mut cc: std::collections::HashMap<String, Vec<f64>> = Default::default();
