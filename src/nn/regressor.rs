@@ -7,6 +7,7 @@ use super::format;
 use super::mlp::Mlp;
 use super::scaler::ZScore;
 use super::train::{EpochStats, TrainConfig, TrainReport, train};
+use crate::numeric::parallel;
 
 /// An [`Mlp`] wrapped with z-score scalers on inputs and outputs (seed 000 eq. 7), so callers
 /// work in physical units. The scalers are fitted once on the first training set and kept
@@ -115,20 +116,14 @@ impl Regressor {
     /// from about 10,000 samples.
     pub fn predict_parallel(&self, x: &[f64], threads: usize) -> Result<Vec<f64>> {
         let n = self.mlp.rows(x)?;
-        let threads = crate::numeric::parallel::resolve_threads(threads);
         let (ni, no) = (self.n_inputs(), self.n_outputs());
         let mut y = vec![0.0; n * no];
-        let per = n.div_ceil(threads.max(1)).max(4096);
+        let per = parallel::chunk_len(n, threads, 4096);
         let fast = &self.fast;
-        let ok = std::thread::scope(|s| {
-            let hs: Vec<_> = x
-                .chunks(per * ni)
-                .zip(y.chunks_mut(per * no))
-                .map(|(xc, yc)| s.spawn(move || fast.forward(xc, yc)))
-                .collect();
-            hs.into_iter()
-                .all(|h| h.join().expect("prediction worker panicked"))
-        });
+        let ok =
+            parallel::zip_chunks_mut(x, per * ni, &mut y, per * no, |xc, yc| fast.forward(xc, yc))
+                .into_iter()
+                .all(|ok| ok);
         if !ok {
             check_finite("network input", x)?;
         }

@@ -1,4 +1,6 @@
-//! Brent's derivative-free minimisation on a bracket (golden section + parabolic steps).
+//! Brent's derivative-free minimisation on a bracket (golden section + parabolic steps): the
+//! one line search of the crate (step-error extrema, carrier lines, gap effect parameters,
+//! GCV choice of smoothing weights).
 //!
 //! Written here (no crate): argmin would bring a framework for a 50-line routine that must run
 //! millions of times a second without allocating.

@@ -11,6 +11,7 @@
 
 pub mod brent;
 pub mod bspline;
+pub mod lsq;
 pub mod parallel;
 pub mod penalty;
 pub mod tridiag;

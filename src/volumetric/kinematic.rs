@@ -2,8 +2,8 @@
 
 use super::Error;
 use super::data::{Bounds, VolumetricData};
-use super::lsq::LeastSquares;
 use super::motion_basis::MotionBasis;
+use crate::numeric::lsq::LeastSquares;
 use crate::numeric::vec3::cross;
 use serde::{Deserialize, Serialize};
 
@@ -256,7 +256,9 @@ impl KinematicModel {
                 _ => 0.0,
             })
             .collect();
-        let smoothed = ls.solve_smoothed(&weights)?;
+        let smoothed = ls
+            .solve_smoothed(&weights)
+            .map_err(|e| Error::Fit(e.to_string()))?;
         model.smoothing = smoothed.lambda;
         model.effective_parameters = smoothed.edf;
         let sol = smoothed.solution;
