@@ -3,7 +3,7 @@
 
 * The Python study's geometric method: vectorised numpy golden-section search (60 iterations + end
   check) of the extremal distance from the CC curve to the CL line, over all 19,800 segments of
-  surface 1 (formulas from ../shared/reference/step/README.md; curve points from the analytic surface).
+  surface 1 (formulas from tests/data/step/README.md; curve points from the analytic surface).
 * A forward pass of the same network shape (inputs-28-20-2, ReLU) in numpy and, if installed, in
   PyTorch on CPU with 1 thread (float64 and float32).
 Prints one JSON line of segments/s (last line); every rate is the best of 5-15 runs (the bench

@@ -12,17 +12,16 @@
 //! - [`config`]: the service configuration (flags and environment, one struct).
 //! - [`server`]: starts the HTTP service (store, jobs, router, listener) and shuts it down gracefully.
 //! - [`cli`]: command-line entry points: `serve` (with `--demo`) and one subcommand per capability.
+//! - [`numeric`]: the toolbox every core may use: Brent line search, tridiagonal solve, B-spline basis, difference penalties, least squares, vec3, thread splitting.
 //! - [`geometry`]: cubic splines, height surfaces, iso-parametric path sampling, exact ball-end step error (seed 000) and its network features.
 //! - [`nn`]: small dense networks (MLP): z-score, dropout, SGD-momentum/Adam, early stopping, binary model format (seeds 000, 001, 004).
 //! - [`volumetric`]: volumetric error maps (seeds 001, 004): trilinear table, 3-8-3 network, ISO 230-1 rigid-body model, hybrid, auto by CV, compensation tables.
 //! - [`motion`]: contour error from G-code (seed 003): G-code reader, RTCP interpolation, kinematics, servo cascade, contour error.
 //! - [`signal`]: machining-error decomposition (seed 002): VMD, EMD, wavelets, Whittaker smoothing, screening, coarse-to-fine in 1-D and on 2-D grids.
 //! - [`compensation`]: normal-offset compensation (seed 002): compensated points, reconstructed compensated surface, compensated CL points.
-//! - [`parallel`]: thread counts for the cores' scoped-thread splits (0 = all cores).
 //! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check.
 
 pub mod api;
-pub mod bspline;
 pub mod cli;
 pub mod compensation;
 pub mod config;
@@ -31,7 +30,7 @@ pub mod geometry;
 pub mod jobs;
 pub mod motion;
 pub mod nn;
-pub mod parallel;
+pub mod numeric;
 pub mod server;
 pub mod signal;
 pub mod store;

@@ -1,5 +1,5 @@
 //! The paper's simulation (seed 002, section 3, eq. 23) over 20 seeds, beside its Table 3 and
-//! beside the Python peers (../shared/reference/decomposition/REPORT.md §1).
+//! beside the Python peers (tests/data/decomposition/REPORT.md §1).
 //!
 //! x(t) = 0.04·[sin(1.6πt) + cos(0.05πt) + 4·e^(−3t)] mm, t = 1 … 21.24 step 0.01 (2,025
 //! samples), plus N(0, σ = 0.005 mm) noise (σ, not variance: REPORT §2 shows only this reading

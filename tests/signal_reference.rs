@@ -1,12 +1,13 @@
 //! Conformance of the signal core against the peers' reference vectors
-//! (`../shared/reference/decomposition/`, written by PyWavelets, PyEMD and vmdpy).
+//! (vendored in `tests/data/decomposition/`, written by PyWavelets, PyEMD and vmdpy; see
+//! `tests/data/README.md` for versions).
 
 use serde_json::Value;
 use truecut::signal::wavelet::{self, Wavelet};
 
 fn load(name: &str) -> Value {
     let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../shared/reference/decomposition")
+        .join("tests/data/decomposition")
         .join(name);
     let text = std::fs::read_to_string(&path)
         .unwrap_or_else(|e| panic!("reference file {} missing: {e}", path.display()));

@@ -7,9 +7,9 @@ mod helpers;
 use helpers::*;
 use serde_json::{Value, json};
 
-/// The study's test vectors (`../shared/reference/step/`) as (segment JSON, e_um).
+/// The study's test vectors (vendored in `tests/data/step/`) as (segment JSON, e_um).
 fn vectors() -> Vec<(Value, f64)> {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/reference/step/");
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/step/");
     let main =
         std::fs::read_to_string(format!("{dir}testvectors.csv")).expect("reference step vectors");
     let pm = std::fs::read_to_string(format!("{dir}testvectors_pm.csv"))

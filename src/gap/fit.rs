@@ -2,7 +2,7 @@
 //! of the samples (weights 0/1 select the training folds of blocked cross-validation).
 //!
 //! Written here (no crate): every effect decouples per axis into 1-D searches or 2×2 linear
-//! least squares; argmin's solvers would add a dependency for a golden-section search.
+//! least squares (the line search is `numeric::brent::minimize_on_grid`).
 #![allow(clippy::needless_range_loop)] // index loops over parallel per-sample arrays read clearer
 
 use std::collections::HashMap;
@@ -10,6 +10,7 @@ use std::sync::{Arc, Mutex};
 
 use crate::gap::effects::{Effect, Fitted, cyclic_phase, first_direction, thermal_basis};
 use crate::gap::plant::AxisPlant;
+use crate::numeric::brent::minimize_on_grid;
 
 /// What a fit sees: the plant, one block's command, measurement and stored simulation.
 pub struct FitData<'a> {
@@ -57,88 +58,6 @@ pub fn sse(meas: &[f64], pred: &[f64], w: &[f64]) -> f64 {
     if s.is_nan() { f64::INFINITY } else { s }
 }
 
-/// Minimizes `f` on a grid, then by Brent's method (parabolic steps with golden-section
-/// fallback) between the best grid point's neighbours, to a relative tolerance of 1e-4 of the
-/// bracket or `iterations` evaluations. Returns `(x, f(x))` of the best point seen.
-/// Reference: R. P. Brent, "Algorithms for Minimization without Derivatives" (1973), ch. 5.
-/// Bad cases: a minimum narrower than the grid spacing elsewhere on the grid is missed.
-pub fn minimize_1d(f: impl FnMut(f64) -> f64, grid: &[f64], iterations: usize) -> (f64, f64) {
-    minimize_1d_tol(f, grid, iterations, 1e-4)
-}
-
-/// [`minimize_1d`] stopping when the bracket is below `rel_tol` of the initial bracket.
-pub fn minimize_1d_tol(
-    mut f: impl FnMut(f64) -> f64,
-    grid: &[f64],
-    iterations: usize,
-    rel_tol: f64,
-) -> (f64, f64) {
-    let vals: Vec<f64> = grid.iter().map(|&x| f(x)).collect();
-    let (k, _) =
-        vals.iter().enumerate().fold(
-            (0, f64::INFINITY),
-            |acc, (i, &v)| if v < acc.1 { (i, v) } else { acc },
-        );
-    let (mut a, mut b) = (grid[k.saturating_sub(1)], grid[(k + 1).min(grid.len() - 1)]);
-    let cgold = 0.5 * (3.0 - 5f64.sqrt());
-    let tol = rel_tol * (b - a).abs().max(1e-300);
-    let (mut x, mut fx) = (grid[k], vals[k]);
-    let (mut w, mut fw, mut v, mut fv) = (x, fx, x, fx);
-    let (mut d, mut e) = (0.0f64, 0.0f64);
-    for _ in 0..iterations {
-        let m = 0.5 * (a + b);
-        if (x - m).abs() <= 2.0 * tol - 0.5 * (b - a) {
-            break;
-        }
-        let mut golden = true;
-        if e.abs() > tol {
-            let r = (x - w) * (fx - fv);
-            let mut q = (x - v) * (fx - fw);
-            let mut p = (x - v) * q - (x - w) * r;
-            q = 2.0 * (q - r);
-            if q > 0.0 {
-                p = -p;
-            }
-            q = q.abs();
-            if p.abs() < (0.5 * q * e).abs() && p > q * (a - x) && p < q * (b - x) {
-                e = d;
-                d = p / q;
-                golden = false;
-            }
-        }
-        if golden {
-            e = if x < m { b - x } else { a - x };
-            d = cgold * e;
-        }
-        let u = if d.abs() >= tol {
-            x + d
-        } else {
-            x + tol * d.signum()
-        };
-        let fu = f(u);
-        if fu <= fx {
-            if u < x {
-                b = x
-            } else {
-                a = x
-            }
-            (v, fv, w, fw, x, fx) = (w, fw, x, fx, u, fu);
-        } else {
-            if u < x {
-                a = u
-            } else {
-                b = u
-            }
-            if fu <= fw || w == x {
-                (v, fv, w, fw) = (w, fw, u, fu);
-            } else if fu <= fv || v == x || v == w {
-                (v, fv) = (u, fu);
-            }
-        }
-    }
-    (x, fx)
-}
-
 /// `Σ wᵢ (measᵢ − play(motor)ᵢ)²` without materialising the play output (see
 /// [`crate::gap::plant::play`]).
 fn play_sse(motor: &[f64], meas: &[f64], b: f64, c0: f64, w: &[f64]) -> f64 {
@@ -184,7 +103,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                             sse(&data.meas[k], &p.with_friction(f, &data.cmd[k]), w)
                         }
                     };
-                    minimize_1d_tol(loss, &grid, 14, 1e-2).0
+                    minimize_on_grid(loss, &grid, 14, 1e-2).0
                 })
                 .collect();
             Fitted::CoulombFriction { f }
@@ -213,7 +132,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                     best
                 };
                 let (b, _) =
-                    minimize_1d_tol(|b| best_start(b).1, &quadratic_grid(0.25, 16), 16, 1e-2);
+                    minimize_on_grid(|b| best_start(b).1, &quadratic_grid(0.25, 16), 16, 1e-2);
                 starts.push(best_start(b).0);
                 bs.push(b);
             }
@@ -237,7 +156,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                             sse(&data.meas[k], &p.with_kv(kv, &data.cmd[k]), w)
                         }
                     };
-                    minimize_1d_tol(loss, &grid, 16, 1e-2).0
+                    minimize_on_grid(loss, &grid, 16, 1e-2).0
                 })
                 .collect();
             Fitted::ServoGainMismatch { kv }
@@ -342,7 +261,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                     grid[kbest],
                     grid[(kbest + 1).min(grid.len() - 1)],
                 ];
-                let (lp, _) = minimize_1d_tol(|lp| solve_strided(lp.exp(), 1).2, &near, 14, 1e-3);
+                let (lp, _) = minimize_on_grid(|lp| solve_strided(lp.exp(), 1).2, &near, 14, 1e-3);
                 let (a, b, _) = solve_strided(lp.exp(), 1);
                 pitch.push(lp.exp());
                 sn.push(a);

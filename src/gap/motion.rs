@@ -9,6 +9,7 @@ use crate::gap::events::{Span, rank_spans};
 use crate::gap::fit::{FitData, fit, sse};
 use crate::gap::plant::AxisPlant;
 use crate::motion::{ServoAxis, StructuralMode};
+use crate::numeric::parallel::map_dynamic;
 
 /// One block of samples, per axis columns (mm), sample `i` at `t = i·period_s`.
 #[derive(Clone, Debug, Default)]
@@ -298,7 +299,7 @@ pub fn diagnose_motion_structured(
         };
         (fitted, score, (held_none - held_eff) / (n * dims) as f64)
     };
-    let results = run_parallel(&Effect::LIBRARY, opts.threads, evaluate);
+    let results = map_dynamic(&Effect::LIBRARY, opts.threads, evaluate);
 
     let duration = (n - 1) as f64 * period_s;
     let mut effects: Vec<(EffectResult, f64)> = results
@@ -354,47 +355,6 @@ pub fn diagnose_motion_structured(
         validation,
         noise_mm: noise,
     })
-}
-
-/// Maps `f` over `items` on up to `threads` scoped threads, keeping the order.
-pub(crate) fn run_parallel<T: Sync + Copy, R: Send>(
-    items: &[T],
-    threads: usize,
-    f: impl Fn(T) -> R + Sync,
-) -> Vec<R> {
-    let threads = threads.clamp(1, items.len().max(1));
-    if threads == 1 {
-        return items.iter().map(|&x| f(x)).collect();
-    }
-    let next = std::sync::atomic::AtomicUsize::new(0);
-    let mut out: Vec<Option<R>> = (0..items.len()).map(|_| None).collect();
-    let collected: Vec<Vec<(usize, R)>> = std::thread::scope(|s| {
-        let handles: Vec<_> = (0..threads)
-            .map(|_| {
-                s.spawn(|| {
-                    let mut mine = Vec::new();
-                    loop {
-                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-                        if i >= items.len() {
-                            break;
-                        }
-                        mine.push((i, f(items[i])));
-                    }
-                    mine
-                })
-            })
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("effect fit panicked"))
-            .collect()
-    });
-    for (i, r) in collected.into_iter().flatten() {
-        out[i] = Some(r);
-    }
-    out.into_iter()
-        .map(|r| r.expect("every item evaluated"))
-        .collect()
 }
 
 #[cfg(test)]

@@ -3,15 +3,15 @@
 //! located in grid regions.
 //!
 //! Every part effect is linear in its parameters (for a fixed thermal time constant), so each is
-//! fitted by SVD least squares (nalgebra), truncated where the surface cannot tell parameters
-//! apart (e.g. in-plane shifts of a flat plate).
+//! fitted by SVD least squares (`numeric::lsq::truncated_svd`), truncated where the surface
+//! cannot tell parameters apart (e.g. in-plane shifts of a flat plate).
 
-use nalgebra::{DMatrix, DVector};
 use serde::Serialize;
 
 use crate::gap::Error;
 use crate::gap::effects::thermal_basis;
 use crate::gap::motion::{GapStats, noise_sigma};
+use crate::numeric::lsq::truncated_svd;
 
 /// Part-domain effect names (CONTRACT) and `none`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
@@ -173,51 +173,6 @@ fn columns(
     }
 }
 
-/// Weighted least squares by truncated SVD (singular values below 1e-9 of the largest dropped).
-fn lstsq(rows: &[Vec<f64>], y: &[f64], w: &[f64]) -> Vec<f64> {
-    let p = rows.first().map_or(0, Vec::len);
-    let idx: Vec<usize> = (0..y.len()).filter(|&i| w[i] > 0.0).collect();
-    if p == 0 || idx.is_empty() {
-        return vec![0.0; p];
-    }
-    let norms: Vec<f64> = (0..p)
-        .map(|j| {
-            idx.iter()
-                .map(|&i| rows[i][j] * rows[i][j])
-                .sum::<f64>()
-                .sqrt()
-        })
-        .collect();
-    let biggest = norms.iter().fold(0.0f64, |a, &b| a.max(b));
-    if biggest == 0.0 {
-        return vec![0.0; p];
-    }
-    // a column the surface cannot excite (e.g. rotation about the axis of a surface of
-    // revolution) gets coefficient 0 instead of an arbitrary huge value
-    let live: Vec<bool> = norms.iter().map(|&v| v > 1e-9 * biggest).collect();
-    let scale: Vec<f64> = norms
-        .iter()
-        .zip(&live)
-        .map(|(&v, &l)| if l { v } else { 1.0 })
-        .collect();
-    let a = DMatrix::from_fn(idx.len(), p, |r, j| {
-        if live[j] {
-            rows[idx[r]][j] / scale[j]
-        } else {
-            0.0
-        }
-    });
-    let b = DVector::from_iterator(idx.len(), idx.iter().map(|&i| y[i]));
-    let svd = a.svd(true, true);
-    let smax = svd.singular_values.max();
-    match svd.solve(&b, smax * 1e-9) {
-        Ok(x) => (0..p)
-            .map(|j| if live[j] { x[j] / scale[j] } else { 0.0 })
-            .collect(),
-        Err(_) => vec![0.0; p],
-    }
-}
-
 fn check(field: &str, grid: &PartGrid, b: &PartBlock) -> Result<(), Error> {
     let n = grid.nu * grid.nv;
     for (name, len) in [
@@ -313,7 +268,7 @@ pub fn diagnose_part(
             let rows: Vec<Vec<f64>> = (0..n)
                 .map(|k| columns(effect, grid, main, c, tau, k))
                 .collect();
-            let coef = lstsq(&rows, &r, w);
+            let coef = truncated_svd(&rows, &r, w);
             let loss: f64 = (0..n)
                 .map(|k| w[k] * (r[k] - dot(&rows[k], &coef)).powi(2))
                 .sum();

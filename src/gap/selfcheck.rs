@@ -168,7 +168,7 @@ pub fn run(cases: usize, seed: u64, opts: &MotionOptions) -> Result<SelfCheckRep
         threads: 1,
         ..opts.clone()
     };
-    let results = crate::gap::motion::run_parallel(&seeds, opts.threads, |s| {
+    let results = crate::numeric::parallel::map_dynamic(&seeds, opts.threads, |s| {
         run_case(((s - seed) % 9) as usize, s, &serial)
     });
     let cases: Vec<CaseResult> = results.into_iter().collect::<Result<_, _>>()?;

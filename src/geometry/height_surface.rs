@@ -133,7 +133,7 @@ impl HeightSurface {
         ([x, y, j.z], [-j.fx * inv, -j.fy * inv, inv])
     }
 
-    /// The Python study's surfaces 1, 2, 3 (`../shared/reference/step/surfaces.json`: bounding
+    /// The Python study's surfaces 1, 2, 3 (`tests/data/step/surfaces.json`: bounding
     /// boxes 120x140x38, 135x175x68.28, 150x150x54.02 mm like the seed's Fig. 4). None otherwise.
     pub fn reference(id: u32) -> Option<Self> {
         use std::f64::consts::TAU;

@@ -2,16 +2,13 @@
 //! iso-parametric path sampling, exact step error of ball-end finishing (seed 000, eq. 1) and
 //! the step-error network's input features.
 
-mod brent;
 mod error;
 mod height_surface;
 mod paths;
 mod spline;
 mod step_error;
 mod step_features;
-pub mod vec3;
 
-pub use brent::minimize as brent_minimize;
 pub use error::Error;
 pub use height_surface::{HeightJet, HeightSurface, HeightTerm};
 pub use paths::{MAX_SEGMENTS, PathPlan, grid_segments, height_surface_segments};

@@ -6,7 +6,7 @@ use super::error::{Error, Result, check_points};
 use super::height_surface::HeightSurface;
 use super::spline::{CubicSpline3, Parameterization};
 use super::step_error::StepErrorSegment;
-use super::vec3::{add, norm, normalize, scale, sub};
+use crate::numeric::vec3::{add, norm, normalize, scale, sub};
 
 /// Most segments one plan may generate (memory guard: ~0.5 kB per segment).
 pub const MAX_SEGMENTS: usize = 2_000_000;
@@ -126,7 +126,7 @@ impl PathPlan {
 /// at `x = x_j + (x_{j+1} - x_j) t`, `t = 0, 1/(m-1), .., 1`, and `CL = P + R n`.
 /// Order: line-major (`index = k * (pts - 1) + j`), as in the Python study.
 ///
-/// Reference: `../shared/reference/step/README.md` "Tool paths / samples"; seed 000
+/// Reference: `tests/data/step/README.md` "Tool paths / samples" (the Python study); seed 000
 /// "Sample construction" (200 lines x 100 CL points).
 pub fn height_surface_segments(
     surface: &HeightSurface,

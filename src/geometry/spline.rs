@@ -6,6 +6,7 @@
 //! times a second, are 150 lines; the interpolation crates allocate per call or are 1-D only.
 
 use super::error::{Error, Result};
+use crate::numeric::tridiag::Tridiagonal;
 
 /// How the spline parameter `t` in [0, 1] is spread over the points.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
@@ -28,11 +29,9 @@ pub struct CubicSpline3 {
     p: Vec<[f64; 3]>,
     /// Second derivatives d2Q/dt2 at the knots.
     d2: Vec<[f64; 3]>,
-    // Thomas-algorithm work space (general knots: `c`, `lower`, `diag_inv`; uniform knots: the
-    // factors `inv_denom`, which depend on the row only).
-    c: Vec<f64>,
-    lower: Vec<f64>,
-    diag_inv: Vec<f64>,
+    /// Thomas factors of the general-knot system (kept to refit without allocating).
+    tri: Tridiagonal,
+    /// Uniform knots: the twisted elimination's factors, which depend on the row only.
     inv_denom: Vec<f64>,
     /// m when the knots are uniform (then `t` is kept between fits), else 0.
     factored_m: usize,
@@ -85,7 +84,10 @@ impl CubicSpline3 {
                 let mut acc = 0.0;
                 self.t.push(0.0);
                 for k in 1..m {
-                    let d = super::vec3::norm(super::vec3::sub(points[k], points[k - 1]));
+                    let d = crate::numeric::vec3::norm(crate::numeric::vec3::sub(
+                        points[k],
+                        points[k - 1],
+                    ));
                     if d.is_nan() || d <= 0.0 {
                         return Err(Error::DuplicatePoints { index: k - 1 });
                     }
@@ -182,7 +184,8 @@ impl CubicSpline3 {
         }
     }
 
-    /// The system for any knots (see [`CubicSpline3::fit`]), by the Thomas algorithm.
+    /// The system for any knots (see [`CubicSpline3::fit`]), by the Thomas algorithm
+    /// ([`Tridiagonal`]).
     fn solve_general(&mut self) {
         let m = self.p.len();
         let (t, p) = (&self.t, &self.p);
@@ -201,9 +204,7 @@ impl CubicSpline3 {
         let n = m - 2;
         let (h0, h1) = (h(0), h(1));
         let (hl, hl1) = (h(m - 2), h(m - 3)); // last and second-to-last intervals
-        self.c.clear();
-        self.lower.clear();
-        self.diag_inv.clear();
+        self.tri.clear();
         for i in 0..n {
             let k = i + 1;
             let (hk1, hk) = (h(k - 1), h(k));
@@ -220,30 +221,17 @@ impl CubicSpline3 {
                 lower -= hl * hl / hl1;
                 upper = 0.0;
             }
-            let c_prev = if i == 0 { 0.0 } else { self.c[i - 1] };
-            let inv = 1.0 / (diag - lower * c_prev);
-            self.c.push(upper * inv);
-            self.lower.push(lower);
-            self.diag_inv.push(inv);
+            self.tri.push_row(lower, diag, upper);
         }
-        let mut prev = [0.0; 3];
         let mut slope_prev: [f64; 3] = std::array::from_fn(|d| (p[1][d] - p[0][d]) / h(0));
-        for (i, (&lower, &inv)) in self.lower.iter().zip(&self.diag_inv).enumerate() {
-            let k = i + 1;
+        for k in 1..=n {
             for d in 0..3 {
                 let slope = (p[k + 1][d] - p[k][d]) / h(k);
-                let r = 6.0 * (slope - slope_prev[d]);
+                self.d2[k][d] = 6.0 * (slope - slope_prev[d]);
                 slope_prev[d] = slope;
-                prev[d] = (r - lower * prev[d]) * inv;
-                self.d2[k][d] = prev[d];
             }
         }
-        for i in (0..n - 1).rev() {
-            let k = i + 1;
-            for d in 0..3 {
-                self.d2[k][d] -= self.c[i] * self.d2[k + 1][d];
-            }
-        }
+        self.tri.solve_in_place(&mut self.d2[1..=n]);
         for d in 0..3 {
             let (m1, m2) = (self.d2[1][d], self.d2[2][d]);
             self.d2[0][d] = m1 * (1.0 + h0 / h1) - (h0 / h1) * m2;

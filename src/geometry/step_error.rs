@@ -4,10 +4,10 @@ use serde::{Deserialize, Serialize};
 
 mod lanes;
 
-use super::brent;
 use super::error::{Error, Result, check_points};
 use super::spline::{CubicSpline3, Parameterization};
-use super::vec3::{cross, dot, norm, normalize, scale, sub};
+use crate::numeric::vec3::{cross, dot, norm, normalize, scale, sub};
+use crate::numeric::{brent, parallel};
 
 /// One step of a tool path: two ball centres (CL points) and the cutter-contact curve between
 /// their contact points, as points in feed order, first and last included (mm).
@@ -545,8 +545,7 @@ pub fn step_errors(
     segments: &[StepErrorSegment],
     threads: usize,
 ) -> Result<Vec<StepError>> {
-    let threads = crate::parallel::resolve_threads(threads);
-    let per = segments.len().div_ceil(threads.max(1)).max(1024);
+    let per = parallel::chunk_len(segments.len(), threads, 1024);
     let run = |offset: usize, segs: &[StepErrorSegment]| -> Result<Vec<StepError>> {
         StepErrorSolver::default()
             .solve_batch(tool_radius_mm, segs.iter().map(|s| (s.cl, &s.cc[..])))
@@ -561,17 +560,7 @@ pub fn step_errors(
     if segments.len() <= per {
         return run(0, segments);
     }
-    let parts: Vec<Result<Vec<StepError>>> = std::thread::scope(|s| {
-        let handles: Vec<_> = segments
-            .chunks(per)
-            .enumerate()
-            .map(|(c, chunk)| s.spawn(move || run(c * per, chunk)))
-            .collect();
-        handles
-            .into_iter()
-            .map(|h| h.join().expect("step-error worker panicked"))
-            .collect()
-    });
+    let parts = parallel::map_chunks(segments, per, run);
     let mut out = Vec::with_capacity(segments.len());
     for p in parts {
         out.extend(p?);

@@ -1,5 +1,5 @@
 //! Oracle tests of the exact step error against the Python study's test vectors
-//! (`../shared/reference/step/testvectors*.csv`: every 97th segment of the three surfaces,
+//! (`tests/data/step/testvectors*.csv`: every 97th segment of the three surfaces,
 //! 615 rows; labels from 2001 dense points on the true surface).
 
 use super::*;
@@ -16,11 +16,11 @@ pub(crate) struct Vector {
 }
 
 pub(crate) fn load_vectors() -> Vec<Vector> {
-    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/reference/step/");
+    let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/step/");
     let main = std::fs::read_to_string(format!("{dir}testvectors.csv"))
-        .expect("reference test vectors (../shared)");
+        .expect("reference test vectors (tests/data/step)");
     let pm = std::fs::read_to_string(format!("{dir}testvectors_pm.csv"))
-        .expect("reference test vectors (../shared)");
+        .expect("reference test vectors (tests/data/step)");
     let mut pts: std::collections::HashMap<(u32, u32, u32), Vec<[f64; 3]>> = Default::default();
     for line in pm.lines().skip(1) {
         let f: Vec<f64> = line.split(',').map(|v| v.parse().unwrap()).collect();
@@ -218,15 +218,21 @@ fn extremum_matches_exhaustive_search_on_the_spline() {
         let e = solver.solve(5.0, v.cl, &v.cc).unwrap();
         let sp = CubicSpline3::through(&v.cc, Parameterization::Uniform).unwrap();
         let a = v.cl[0];
-        let d = super::vec3::sub(v.cl[1], a);
-        let u = super::vec3::scale(d, 1.0 / super::vec3::norm(d));
-        let dist =
-            |t: f64| super::vec3::norm(super::vec3::cross(super::vec3::sub(sp.eval(t), a), u));
+        let d = crate::numeric::vec3::sub(v.cl[1], a);
+        let u = crate::numeric::vec3::scale(d, 1.0 / crate::numeric::vec3::norm(d));
+        let dist = |t: f64| {
+            crate::numeric::vec3::norm(crate::numeric::vec3::cross(
+                crate::numeric::vec3::sub(sp.eval(t), a),
+                u,
+            ))
+        };
         let knots = sp.knots();
         let search = |sign: f64| {
             knots
                 .windows(2)
-                .map(|w| brent::minimize(|t| sign * dist(t), w[0], w[1], 1e-10, 200).1)
+                .map(|w| {
+                    crate::numeric::brent::minimize(|t| sign * dist(t), w[0], w[1], 1e-10, 200).1
+                })
                 .chain(knots.iter().map(|&t| sign * dist(t)))
                 .fold(f64::INFINITY, f64::min)
                 * sign

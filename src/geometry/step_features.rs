@@ -5,7 +5,7 @@ use serde::{Deserialize, Serialize};
 
 use super::error::{Error, Result, check_points};
 use super::spline::{CubicSpline3, Parameterization};
-use super::vec3::{add, cross, dot, normalize, scale, sub};
+use crate::numeric::vec3::{add, cross, dot, normalize, scale, sub};
 
 /// Coordinate frame of the input features.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
@@ -200,7 +200,7 @@ impl StepFeatures {
         // Normal curvature at the middle from second differences (1/mm): its sign is the
         // convexity rule of eq. (1).
         let nm = normalize(sub(add(cl[0], cl[1]), add(cc[0], cc[cc.len() - 1])));
-        let h = super::vec3::norm(sub(pts[m - 1], pts[0])) / (m - 1) as f64;
+        let h = crate::numeric::vec3::norm(sub(pts[m - 1], pts[0])) / (m - 1) as f64;
         let j = (m - 1) / 2;
         let second = |k: usize| dot(sub(add(pts[k - 1], pts[k + 1]), scale(pts[k], 2.0)), nm);
         let kappa = if m % 2 == 0 {

@@ -13,6 +13,8 @@
 //! Hand-written spline (no crate): a tridiagonal solve and a per-segment Newton projection.
 
 use super::kinematics::{Kinematics, angle_between_deg};
+use crate::numeric::tridiag::Tridiagonal;
+use crate::numeric::vec3::{dist, dot};
 
 /// Contour and tracking errors of a simulated run.
 #[derive(Clone, Debug, PartialEq)]
@@ -46,35 +48,20 @@ struct PathSpline {
 impl PathSpline {
     fn new(pts: Vec<[f64; 3]>) -> Self {
         let n = pts.len();
-        let h: Vec<f64> = pts.windows(2).map(|w| dist(&w[0], &w[1])).collect();
+        let h: Vec<f64> = pts.windows(2).map(|w| dist(w[0], w[1])).collect();
         let mut m2 = vec![[0.0; 3]; n];
         if n >= 3 {
-            // Thomas algorithm on the interior knots 1..n-1 (natural ends: M0 = Mn-1 = 0).
-            let k = n - 2;
-            let mut c_prime = vec![0.0; k];
-            let mut d_prime = vec![[0.0; 3]; k];
-            for r in 0..k {
-                let i = r + 1;
-                let (a, b, c) = (h[i - 1], 2.0 * (h[i - 1] + h[i]), h[i]);
-                let mut rhs = [0.0; 3];
-                for (d, slot) in rhs.iter_mut().enumerate() {
-                    *slot = 6.0
+            // Interior knots 1..n-1 (natural ends: M0 = Mn-1 = 0).
+            let mut tri = Tridiagonal::new();
+            for i in 1..n - 1 {
+                tri.push_row(h[i - 1], 2.0 * (h[i - 1] + h[i]), h[i]);
+                for d in 0..3 {
+                    m2[i][d] = 6.0
                         * ((pts[i + 1][d] - pts[i][d]) / h[i]
                             - (pts[i][d] - pts[i - 1][d]) / h[i - 1]);
                 }
-                let denom = if r == 0 { b } else { b - a * c_prime[r - 1] };
-                c_prime[r] = c / denom;
-                for d in 0..3 {
-                    let carried = if r == 0 { 0.0 } else { a * d_prime[r - 1][d] };
-                    d_prime[r][d] = (rhs[d] - carried) / denom;
-                }
             }
-            for r in (0..k).rev() {
-                let next = if r + 1 < k { m2[r + 2] } else { [0.0; 3] };
-                for d in 0..3 {
-                    m2[r + 1][d] = d_prime[r][d] - c_prime[r] * next[d];
-                }
-            }
+            tri.solve_in_place(&mut m2[1..n - 1]);
         }
         PathSpline { pts, m2, h }
     }
@@ -105,8 +92,8 @@ impl PathSpline {
         for _ in 0..8 {
             let (p, d1, d2) = self.eval(j, tau);
             let r = [p[0] - a[0], p[1] - a[1], p[2] - a[2]];
-            let g1 = dot(&r, &d1);
-            let g2 = dot(&d1, &d1) + dot(&r, &d2);
+            let g1 = dot(r, d1);
+            let g2 = dot(d1, d1) + dot(r, d2);
             if g2 <= 0.0 {
                 break;
             }
@@ -118,30 +105,22 @@ impl PathSpline {
             }
         }
         let (p, _, _) = self.eval(j, tau);
-        (dist(&p, a), tau / h)
+        (dist(p, *a), tau / h)
     }
-}
-
-fn dot(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
-}
-
-fn dist(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
 }
 
 /// Distance from `a` to the chord `p0→p1` and the fraction along it.
 fn chord_distance(p0: &[f64; 3], p1: &[f64; 3], a: &[f64; 3]) -> (f64, f64) {
     let d = [p1[0] - p0[0], p1[1] - p0[1], p1[2] - p0[2]];
     let r = [a[0] - p0[0], a[1] - p0[1], a[2] - p0[2]];
-    let dd = dot(&d, &d);
+    let dd = dot(d, d);
     let f = if dd > 0.0 {
-        (dot(&r, &d) / dd).clamp(0.0, 1.0)
+        (dot(r, d) / dd).clamp(0.0, 1.0)
     } else {
         0.0
     };
     let q = [p0[0] + f * d[0], p0[1] + f * d[1], p0[2] + f * d[2]];
-    (dist(&q, a), f)
+    (dist(q, *a), f)
 }
 
 /// First knot index `k ≤ j` with `cum[k] ≥ target` (`cum` ascending, `cum[j] > target`),
@@ -205,7 +184,7 @@ pub fn contour_error(
     let mut knot_of = Vec::with_capacity(n);
     for (i, p) in cmd_pose.iter().enumerate() {
         match knots.last() {
-            Some(k) if dist(k, &p.tip) <= 1e-9 => {
+            Some(k) if dist(*k, p.tip) <= 1e-9 => {
                 *last.last_mut().unwrap() = i;
             }
             _ => {
@@ -235,13 +214,13 @@ pub fn contour_error(
         let a = &act_pose[i].tip;
         let kc = knot_of[i];
         if nseg == 0 {
-            ce.push(dist(&spline.pts[0], a));
+            ce.push(dist(spline.pts[0], *a));
             if let Some(o) = orient.as_mut() {
                 o.push(angle_between_deg(&cmd_pose[i].axis, &act_pose[i].axis));
             }
             continue;
         }
-        let radius = 2.0 * dist(&cmd_pose[i].tip, a) + 1e-9;
+        let radius = 2.0 * dist(cmd_pose[i].tip, *a) + 1e-9;
         let mut best = (f64::INFINITY, kc.min(nseg - 1), 0.0f64);
         let consider = |j: usize, best: &mut (f64, usize, f64)| {
             let (d, f) = chord_distance(&spline.pts[j], &spline.pts[j + 1], a);
@@ -264,7 +243,7 @@ pub fn contour_error(
         let mut steps = 0;
         while j > 0 && cum[j] >= lo_arc && steps < MAX_WINDOW {
             steps += 1;
-            let slack = dist(&spline.pts[j], a) - best.0;
+            let slack = dist(spline.pts[j], *a) - best.0;
             if slack > spline.h[j - 1] {
                 let target = cum[j] - slack;
                 j = gallop_back(&cum, j, target);
@@ -278,7 +257,7 @@ pub fn contour_error(
         steps = 0;
         while j < nseg && cum[j] <= hi_arc && steps < MAX_WINDOW {
             steps += 1;
-            let slack = dist(&spline.pts[j], a) - best.0;
+            let slack = dist(spline.pts[j], *a) - best.0;
             if slack > spline.h[j] {
                 let target = cum[j] + slack;
                 j = gallop_forward(&cum, j, target);

@@ -10,6 +10,8 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::numeric::vec3::{add, sub};
+
 /// Table offsets and tool length of an `xyzac_table` machine (the machine JSON "geometry").
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -60,14 +62,6 @@ fn rot_x(deg: f64, p: [f64; 3]) -> [f64; 3] {
 fn rot_z(deg: f64, p: [f64; 3]) -> [f64; 3] {
     let (s, c) = deg.to_radians().sin_cos();
     [c * p[0] - s * p[1], s * p[0] + c * p[1], p[2]]
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn add(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
 }
 
 impl Kinematics {

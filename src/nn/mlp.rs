@@ -8,6 +8,7 @@ use super::activation::Activation;
 use super::error::{Error, Result, check_finite};
 use super::fast::Packed;
 use super::init::Init;
+use crate::numeric::parallel;
 
 /// Samples per forward block: keeps every layer's block in L1/L2 while letting gemm amortise.
 const BLOCK: usize = 256;
@@ -128,16 +129,12 @@ impl Mlp {
     /// machine's available parallelism). Worth it from about 10,000 samples.
     pub fn predict_parallel(&self, x: &[f64], threads: usize) -> Result<Vec<f64>> {
         let n = self.check_input(x)?;
-        let threads = crate::parallel::resolve_threads(threads);
         let (ni, no) = (self.n_inputs(), self.n_outputs());
         let mut out = vec![0.0; n * no];
-        let per = n.div_ceil(threads.max(1)).max(4096);
+        let per = parallel::chunk_len(n, threads, 4096);
         let packed = Packed::new(self);
-        let packed = &packed;
-        std::thread::scope(|s| {
-            for (xc, oc) in x.chunks(per * ni).zip(out.chunks_mut(per * no)) {
-                s.spawn(move || packed.forward(xc, oc));
-            }
+        parallel::zip_chunks_mut(x, per * ni, &mut out, per * no, |xc, oc| {
+            packed.forward(xc, oc)
         });
         Ok(out)
     }

@@ -7,6 +7,7 @@ use super::format;
 use super::mlp::Mlp;
 use super::scaler::ZScore;
 use super::train::{EpochStats, TrainConfig, TrainReport, train};
+use crate::numeric::parallel;
 
 /// An [`Mlp`] wrapped with z-score scalers on inputs and outputs (seed 000 eq. 7), so callers
 /// work in physical units. The scalers are fitted once on the first training set and kept
@@ -115,20 +116,14 @@ impl Regressor {
     /// from about 10,000 samples.
     pub fn predict_parallel(&self, x: &[f64], threads: usize) -> Result<Vec<f64>> {
         let n = self.mlp.rows(x)?;
-        let threads = crate::parallel::resolve_threads(threads);
         let (ni, no) = (self.n_inputs(), self.n_outputs());
         let mut y = vec![0.0; n * no];
-        let per = n.div_ceil(threads.max(1)).max(4096);
+        let per = parallel::chunk_len(n, threads, 4096);
         let fast = &self.fast;
-        let ok = std::thread::scope(|s| {
-            let hs: Vec<_> = x
-                .chunks(per * ni)
-                .zip(y.chunks_mut(per * no))
-                .map(|(xc, yc)| s.spawn(move || fast.forward(xc, yc)))
-                .collect();
-            hs.into_iter()
-                .all(|h| h.join().expect("prediction worker panicked"))
-        });
+        let ok =
+            parallel::zip_chunks_mut(x, per * ni, &mut y, per * no, |xc, yc| fast.forward(xc, yc))
+                .into_iter()
+                .all(|ok| ok);
         if !ok {
             check_finite("network input", x)?;
         }
@@ -290,7 +285,7 @@ mod tests {
     /// weights and the labels' scaler (R - Lmin, Lmax - R in µm). Bound: 1e-4 µm.
     #[test]
     fn f32_path_matches_f64_on_study_data() {
-        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/../shared/reference/step/");
+        let dir = concat!(env!("CARGO_MANIFEST_DIR"), "/tests/data/step/");
         let main = std::fs::read_to_string(format!("{dir}testvectors.csv")).expect("vectors");
         let pm = std::fs::read_to_string(format!("{dir}testvectors_pm.csv")).expect("vectors");
         let mut cc: std::collections::HashMap<String, Vec<f64>> = Default::default();

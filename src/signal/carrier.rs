@@ -16,8 +16,9 @@
 
 use super::error::{Error, check_signal};
 use super::whittaker::minimise_log_lambda;
-use crate::bspline::uniform_cubic;
-use crate::geometry::brent_minimize;
+use crate::numeric::brent::minimize as brent_minimize;
+use crate::numeric::bspline::uniform_cubic;
+use crate::numeric::penalty::difference_penalty;
 use nalgebra::{DMatrix, DVector};
 use realfft::RealFftPlanner;
 
@@ -121,16 +122,9 @@ impl Carrier {
         }
         // Second-difference penalty DᵀD on each block.
         let mut pen = DMatrix::<f64>::zeros(p, p);
+        let block_pen = difference_penalty(m, 2);
         for block in [0, m] {
-            for i in 0..m - 2 {
-                let idx = [block + i, block + i + 1, block + i + 2];
-                let d = [1.0, -2.0, 1.0];
-                for a in 0..3 {
-                    for b in 0..3 {
-                        pen[(idx[a], idx[b])] += d[a] * d[b];
-                    }
-                }
-            }
+            pen.view_mut((block, block), (m, m)).copy_from(&block_pen);
         }
         // A tiny ridge keeps the factorisation defined when a basis function sees few
         // samples (short records); 1e-10 of the mean diagonal changes no fit visibly.

@@ -31,6 +31,7 @@ use super::screen::{screen, sum_selected};
 use super::vmd::{VmdParams, choose_k, vmd};
 use super::wavelet::{LevelRule, Wavelet, denoise, max_level, median_abs, noise_level};
 use super::whittaker::{Smoothed, whittaker};
+use crate::numeric::parallel;
 use serde::{Deserialize, Serialize};
 
 /// Wavelet level: a number, or a rule (`"noise"` default, `"max"` as PyWavelets).
@@ -315,56 +316,52 @@ pub fn narrow_band_part(
     }
     let sub = |a: &[f64], b: &[f64]| -> Vec<f64> { a.iter().zip(b).map(|(p, q)| p - q).collect() };
     // S alone runs on its own thread while the carriers are fitted.
-    let (without, with) = std::thread::scope(|scope| {
-        let handle = scope.spawn(alone);
-        let with = (|| -> Result<_, Error> {
-            let carriers: Vec<Carrier> = lines
-                .iter()
-                .map(|&(_, f)| Carrier::new(n, f))
-                .collect::<Result<_, _>>()?;
-            let mut h: Vec<Vec<f64>> = Vec::with_capacity(lines.len());
-            let mut edf = vec![0.0; lines.len()];
-            for (i, &(k, _)) in lines.iter().enumerate() {
-                let mut r = x.to_vec();
-                for (j, mode) in modes.iter().enumerate() {
-                    if strong[j] && j != k {
-                        r = sub(&r, mode);
+    let (without, with) = parallel::join(alone, || -> Result<_, Error> {
+        let carriers: Vec<Carrier> = lines
+            .iter()
+            .map(|&(_, f)| Carrier::new(n, f))
+            .collect::<Result<_, _>>()?;
+        let mut h: Vec<Vec<f64>> = Vec::with_capacity(lines.len());
+        let mut edf = vec![0.0; lines.len()];
+        for (i, &(k, _)) in lines.iter().enumerate() {
+            let mut r = x.to_vec();
+            for (j, mode) in modes.iter().enumerate() {
+                if strong[j] && j != k {
+                    r = sub(&r, mode);
+                }
+            }
+            let fit = carriers[i].fit(&r)?;
+            edf[i] = fit.edf;
+            h.push(fit.signal);
+        }
+        let total = |h: &[Vec<f64>]| {
+            let mut t = vec![0.0; n];
+            for hk in h {
+                for (a, b) in t.iter_mut().zip(hk) {
+                    *a += b;
+                }
+            }
+            t
+        };
+        for _ in 0..1 {
+            let l = smooth(&sub(x, &total(&h)))?;
+            for i in 0..h.len() {
+                let mut r = sub(x, &l.signal);
+                for (j, hj) in h.iter().enumerate() {
+                    if j != i {
+                        r = sub(&r, hj);
                     }
                 }
                 let fit = carriers[i].fit(&r)?;
                 edf[i] = fit.edf;
-                h.push(fit.signal);
+                h[i] = fit.signal;
             }
-            let total = |h: &[Vec<f64>]| {
-                let mut t = vec![0.0; n];
-                for hk in h {
-                    for (a, b) in t.iter_mut().zip(hk) {
-                        *a += b;
-                    }
-                }
-                t
-            };
-            for _ in 0..1 {
-                let l = smooth(&sub(x, &total(&h)))?;
-                for i in 0..h.len() {
-                    let mut r = sub(x, &l.signal);
-                    for (j, hj) in h.iter().enumerate() {
-                        if j != i {
-                            r = sub(&r, hj);
-                        }
-                    }
-                    let fit = carriers[i].fit(&r)?;
-                    edf[i] = fit.edf;
-                    h[i] = fit.signal;
-                }
-            }
-            let hsum = total(&h);
-            let l = smooth(&sub(x, &hsum))?;
-            Ok((hsum, l, edf))
-        })();
-        (handle.join().expect("smoother thread panicked"), with)
+        }
+        let hsum = total(&h);
+        let l = smooth(&sub(x, &hsum))?;
+        Ok((hsum, l, edf))
     });
-    let without = without?;
+    let without = without.expect("smoother thread panicked")?;
     // A carrier that cannot be fitted (e.g. a singular envelope design on a tiny record)
     // only means there is no narrow-band part: the smoother alone is the answer.
     let Ok((hsum, l, edf)) = with else {

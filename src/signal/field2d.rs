@@ -3,6 +3,7 @@
 
 use super::error::{Error, check_signal};
 use super::whittaker::{Smoothed, half_power_frequency, minimise_log_lambda, whittaker};
+use crate::numeric::penalty::difference_penalty;
 use nalgebra::{DMatrix, SymmetricEigen};
 use serde::{Deserialize, Serialize};
 
@@ -57,23 +58,7 @@ fn penalty_eigen(side: usize, d: usize) -> (Vec<f64>, DMatrix<f64>) {
     if side <= d {
         return (vec![0.0; side], DMatrix::identity(side, side));
     }
-    let mut c = vec![1.0f64];
-    for _ in 0..d {
-        let mut next = vec![0.0; c.len() + 1];
-        for (j, &v) in c.iter().enumerate() {
-            next[j] -= v;
-            next[j + 1] += v;
-        }
-        c = next;
-    }
-    let mut p = DMatrix::<f64>::zeros(side, side);
-    for r in 0..side - d {
-        for a in 0..=d {
-            for b in 0..=d {
-                p[(r + a, r + b)] += c[a] * c[b];
-            }
-        }
-    }
+    let p = difference_penalty(side, d);
     let eig = SymmetricEigen::new(p);
     (
         eig.eigenvalues.iter().map(|v| v.max(0.0)).collect(),

@@ -1,8 +1,9 @@
 //! Cubic interpolating splines with not-a-knot end conditions (as scipy's `CubicSpline`,
-//! which PyEMD uses for its envelopes). Written here: a tridiagonal solve is a few lines and
-//! the spline crates either allocate per evaluation or lack not-a-knot ends.
+//! which PyEMD uses for its envelopes). Written here (the tridiagonal solve is
+//! `numeric::tridiag`): the spline crates either allocate per evaluation or lack not-a-knot ends.
 
 use super::error::Error;
+use crate::numeric::tridiag;
 
 /// A C² piecewise cubic through (x_i, y_i), stored as values and slopes at the knots
 /// (Hermite form).
@@ -72,7 +73,7 @@ impl CubicSpline {
             rhs[n - 1] = (dx[n - 2] * dx[n - 2] * m[n - 3]
                 + (2.0 * dn + dx[n - 2]) * dx[n - 3] * m[n - 2])
                 / dn;
-            thomas(&lower, &mut diag, &upper, &mut rhs);
+            tridiag::solve(&lower, &diag, &upper, &mut rhs);
             rhs
         };
         Ok(Self {
@@ -150,21 +151,6 @@ impl CubicSpline {
             k = stop;
         }
         out
-    }
-}
-
-/// Solves a tridiagonal system in place (Thomas algorithm); `rhs` becomes the solution.
-/// `lower[0]` and `upper[n-1]` are unused.
-fn thomas(lower: &[f64], diag: &mut [f64], upper: &[f64], rhs: &mut [f64]) {
-    let n = diag.len();
-    for i in 1..n {
-        let w = lower[i] / diag[i - 1];
-        diag[i] -= w * upper[i - 1];
-        rhs[i] -= w * rhs[i - 1];
-    }
-    rhs[n - 1] /= diag[n - 1];
-    for i in (0..n - 1).rev() {
-        rhs[i] = (rhs[i] - upper[i] * rhs[i + 1]) / diag[i];
     }
 }
 

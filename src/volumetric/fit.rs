@@ -7,6 +7,7 @@ use super::kinematic::KinematicModel;
 use super::model::{Model, ModelKind};
 use super::network::{NetworkMap, NetworkOptions};
 use super::trilinear::TrilinearMap;
+use crate::numeric::parallel;
 use rand::SeedableRng;
 use rand::rngs::StdRng;
 use rand::seq::SliceRandom;
@@ -300,11 +301,14 @@ pub fn fit(data: &VolumetricData, options: &FitOptions) -> Result<VolumetricMap,
     // the two network kinds dominate the time: score them on a second thread
     let (slow, fast): (Vec<ModelKind>, Vec<ModelKind>) =
         kinds.iter().partition(|k| matches!(k, ModelKind::Network));
-    let (mut scores, slow_scores) = std::thread::scope(|s| {
-        let h = s.spawn(|| slow.iter().map(|&k| score_one(k)).collect::<Vec<_>>());
-        let f: Vec<ModelScore> = fast.iter().map(|&k| score_one(k)).collect();
-        (f, h.join())
-    });
+    let (slow_scores, mut scores) = parallel::join(
+        || slow.iter().map(|&k| score_one(k)).collect::<Vec<_>>(),
+        || {
+            fast.iter()
+                .map(|&k| score_one(k))
+                .collect::<Vec<ModelScore>>()
+        },
+    );
     scores.extend(slow_scores.map_err(|_| Error::Fit("cross-validation thread panicked".into()))?);
     scores.sort_by_key(|s| ModelKind::CONCRETE.iter().position(|&k| k == s.model));
     let chosen = match options.model {

@@ -2,8 +2,9 @@
 
 use super::Error;
 use super::data::{Bounds, VolumetricData};
-use super::lsq::LeastSquares;
 use super::motion_basis::MotionBasis;
+use crate::numeric::lsq::LeastSquares;
+use crate::numeric::vec3::cross;
 use serde::{Deserialize, Serialize};
 
 /// ISO 230-1 names of the six error motions of each axis, in the order the model
@@ -63,14 +64,6 @@ pub fn first_degree(axis: usize, function: usize) -> usize {
         (1, 0) | (2, 0) | (2, 1) => 2,
         _ => 1,
     }
-}
-
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
 }
 
 /// Lever arm (mm) from the axis' carriage to the tool tip along the chain X→Y→Z→tool.
@@ -263,7 +256,9 @@ impl KinematicModel {
                 _ => 0.0,
             })
             .collect();
-        let smoothed = ls.solve_smoothed(&weights)?;
+        let smoothed = ls
+            .solve_smoothed(&weights)
+            .map_err(|e| Error::Fit(e.to_string()))?;
         model.smoothing = smoothed.lambda;
         model.effective_parameters = smoothed.edf;
         let sol = smoothed.solution;

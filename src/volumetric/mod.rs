@@ -7,7 +7,6 @@ mod export;
 mod fit;
 mod hybrid;
 mod kinematic;
-mod lsq;
 mod model;
 mod motion_basis;
 mod network;

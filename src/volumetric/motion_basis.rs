@@ -12,7 +12,7 @@
 //!   spline does not (measured: `cargo bench --bench volumetric`, BENCHMARKS.md).
 //!   With cap ≤ 3 the spline space is the cubic polynomials and the Legendre basis is used.
 //!
-//! Written here: the basis is 60 lines of nalgebra on top of [`crate::bspline`].
+//! Written here: the basis is 60 lines of nalgebra on top of [`crate::numeric::bspline`].
 
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
@@ -55,7 +55,7 @@ fn build(cap: usize) -> SplineTerms {
     for i in 0..g {
         let s = -1.0 + i as f64 * ds;
         let w = if i == 0 || i == g - 1 { 0.5 * ds } else { ds };
-        let (j, v) = crate::bspline::uniform_cubic(s, [-1.0, 1.0], pieces);
+        let (j, v) = crate::numeric::bspline::uniform_cubic(s, [-1.0, 1.0], pieces);
         let t = (s + 1.0) / 2.0 * pieces as f64 - j as f64;
         let d2 = [1.0 - t, 3.0 * t - 2.0, 1.0 - 3.0 * t, t].map(|x| x * scale2);
         for a in 0..4 {
@@ -121,7 +121,7 @@ impl MotionBasis {
             return;
         }
         let terms = spline_terms(cap);
-        let (j, v) = crate::bspline::uniform_cubic(s, [-1.0, 1.0], terms.pieces);
+        let (j, v) = crate::numeric::bspline::uniform_cubic(s, [-1.0, 1.0], terms.pieces);
         out.clear();
         out.push(1.0);
         out.push(s);

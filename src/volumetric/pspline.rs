@@ -8,7 +8,8 @@
 
 use super::Error;
 use super::data::{Bounds, VolumetricData};
-use crate::bspline::uniform_cubic;
+use crate::numeric::bspline::uniform_cubic;
+use crate::numeric::penalty::difference_penalty;
 use nalgebra::DMatrix;
 use serde::{Deserialize, Serialize};
 
@@ -33,17 +34,6 @@ pub struct SmoothingSpline3 {
     pub lambda: f64,
     /// Effective degrees of freedom per component, `tr(H)`.
     pub effective_parameters: f64,
-}
-
-/// `D₂ᵀD₂` for `n` coefficients (second differences), dense.
-fn second_difference_penalty(n: usize) -> DMatrix<f64> {
-    let mut d = DMatrix::zeros(n.saturating_sub(2), n);
-    for r in 0..n.saturating_sub(2) {
-        d[(r, r)] = 1.0;
-        d[(r, r + 1)] = -2.0;
-        d[(r, r + 2)] = 1.0;
-    }
-    d.transpose() * d
 }
 
 fn kron(a: &DMatrix<f64>, b: &DMatrix<f64>) -> DMatrix<f64> {
@@ -95,14 +85,14 @@ impl SmoothingSpline3 {
         }
         let eye = |n: usize| DMatrix::<f64>::identity(n, n);
         let pen = kron(
-            &kron(&second_difference_penalty(nb[0]), &eye(nb[1])),
+            &kron(&difference_penalty(nb[0], 2), &eye(nb[1])),
             &eye(nb[2]),
         ) + kron(
-            &kron(&eye(nb[0]), &second_difference_penalty(nb[1])),
+            &kron(&eye(nb[0]), &difference_penalty(nb[1], 2)),
             &eye(nb[2]),
         ) + kron(
             &kron(&eye(nb[0]), &eye(nb[1])),
-            &second_difference_penalty(nb[2]),
+            &difference_penalty(nb[2], 2),
         );
         let scale = gram.trace() / pen.trace().max(f64::MIN_POSITIVE);
         let ridge = 1e-9 * gram.trace() / m as f64;

@@ -5,9 +5,9 @@
 //! so their latencies overlap (and the compiler may use SIMD). `L = 1` is the single-segment
 //! path, so a batch and a lone segment give bit-identical results.
 
-use super::super::brent;
-use super::super::vec3::{norm, normalize, scale, sub};
 use super::{Prepared, SegmentRef, StepError, TOL_B, TOL_BRENT, TOL_HALLEY, all_finite};
+use crate::numeric::brent;
+use crate::numeric::vec3::{norm, normalize, scale, sub};
 
 type V<const L: usize> = [f64; L];
 type V3<const L: usize> = [[f64; L]; 3];

@@ -1,4 +1,7 @@
 //! Minimal 3-vector helpers on `[f64; 3]` (the wire format of points), kept inline for speed.
+//!
+//! Written here: nalgebra's `Vector3` would convert at every call site of cores whose data
+//! are plain arrays, for five one-line functions.
 
 /// a - b
 #[inline(always)]
@@ -45,4 +48,10 @@ pub fn norm(a: [f64; 3]) -> f64 {
 pub fn normalize(a: [f64; 3]) -> [f64; 3] {
     let n = norm(a);
     if n > 0.0 { scale(a, 1.0 / n) } else { a }
+}
+
+/// |a − b|
+#[inline(always)]
+pub fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    norm(sub(a, b))
 }

@@ -1,8 +1,31 @@
-//! Linear least squares that drops columns the data cannot identify.
+//! Linear least squares that drop columns the data cannot identify, under two named rank
+//! policies:
+//!
+//! - **ordered** ([`LeastSquares::solve`]): columns are taken in the caller's order and a column
+//!   that is (numerically) a combination of earlier kept columns is dropped, coefficient 0.
+//!   For models whose columns have a meaning and a priority (the ISO 230-1 error motions).
+//! - **truncated** ([`truncated_svd`]): columns the data do not excite are zeroed, then the
+//!   minimum-norm solution over singular values above 1e-9 of the largest. For models whose
+//!   columns are symmetric alternatives, none preferred (the part effects of the gap core).
+//!
+//! Written here: nalgebra has no rank-revealing solver that respects a given column order,
+//! and its SVD solve keeps huge coefficients on columns that are numerically zero.
 
-use super::Error;
+use nalgebra::{DMatrix, DVector};
 
-/// Least-squares solution of `A c ≈ y` accumulated row by row.
+/// Why a least-squares solve failed.
+#[derive(Debug, Clone, PartialEq, Eq, thiserror::Error)]
+#[non_exhaustive]
+pub enum Error {
+    /// A coefficient came out infinite or NaN (non-finite data).
+    #[error("least-squares solution is not finite")]
+    NotFinite,
+    /// No penalty weight left the penalised normal equations positive definite.
+    #[error("penalised normal equations are singular")]
+    Singular,
+}
+
+/// Least-squares solution of `A c ≈ y` accumulated row by row (the **ordered** rank policy).
 ///
 /// Columns are taken in the caller's order; a column that is (numerically) a linear
 /// combination of earlier kept columns is dropped and its coefficient fixed to 0. This
@@ -11,7 +34,7 @@ use super::Error;
 /// straightness, so they come after the translational columns and are dropped.
 /// Hand-written (normal equations + ordered Cholesky with skipped pivots, ~60 lines)
 /// because nalgebra has no rank-revealing solver that respects a given column order.
-pub(crate) struct LeastSquares {
+pub struct LeastSquares {
     n: usize,
     gram: Vec<f64>,
     rhs: Vec<f64>,
@@ -20,8 +43,10 @@ pub(crate) struct LeastSquares {
 }
 
 /// A solved system: coefficients (0 for dropped columns) and which columns were kept.
-pub(crate) struct Solution {
+pub struct Solution {
+    /// Coefficient per column (0 for a dropped column).
     pub coef: Vec<f64>,
+    /// Whether each column was kept.
     pub kept: Vec<bool>,
 }
 
@@ -30,7 +55,8 @@ pub(crate) struct Solution {
 const DEPENDENT: f64 = 1e-9;
 
 impl LeastSquares {
-    pub(crate) fn new(n: usize) -> Self {
+    /// An empty system of `n` columns.
+    pub fn new(n: usize) -> Self {
         LeastSquares {
             n,
             gram: vec![0.0; n * n],
@@ -41,7 +67,7 @@ impl LeastSquares {
     }
 
     /// Adds one equation `row · c ≈ y` (row given sparsely as (column, value) pairs).
-    pub(crate) fn add(&mut self, row: &[(usize, f64)], y: f64) {
+    pub fn add(&mut self, row: &[(usize, f64)], y: f64) {
         self.yy += y * y;
         self.rows += 1;
         for &(i, a) in row {
@@ -56,18 +82,18 @@ impl LeastSquares {
 
     /// Solves the normal equations with an ordered Cholesky factorisation that skips
     /// dependent pivots (columns scaled to unit norm first).
-    pub(crate) fn solve(&self) -> Result<Solution, Error> {
+    pub fn solve(&self) -> Result<Solution, Error> {
         self.solve_masked(&vec![true; self.n])
     }
 
     /// Number of equations added.
-    pub(crate) fn rows(&self) -> usize {
+    pub fn rows(&self) -> usize {
         self.rows
     }
 
     /// Residual sum of squares `|y − A c|²` of coefficients `c`, from the normal
     /// equations (`yᵀy − 2cᵀAᵀy + cᵀAᵀAc`).
-    pub(crate) fn rss(&self, coef: &[f64]) -> f64 {
+    pub fn rss(&self, coef: &[f64]) -> f64 {
         let n = self.n;
         let mut q = 0.0;
         for i in 0..n {
@@ -84,7 +110,7 @@ impl LeastSquares {
     }
 
     /// As [`LeastSquares::solve`] but only columns with `allowed[i]` may enter.
-    pub(crate) fn solve_masked(&self, allowed: &[bool]) -> Result<Solution, Error> {
+    pub fn solve_masked(&self, allowed: &[bool]) -> Result<Solution, Error> {
         let n = self.n;
         let g = |i: usize, j: usize| {
             if i <= j {
@@ -148,14 +174,15 @@ impl LeastSquares {
         }
         let coef: Vec<f64> = (0..n).map(|i| w[i] * scale[i]).collect();
         if coef.iter().any(|c| !c.is_finite()) {
-            return Err(Error::Fit("least-squares solution is not finite".into()));
+            return Err(Error::NotFinite);
         }
         Ok(Solution { coef, kept })
     }
 }
 
 /// A penalised solution and the smoothing it used.
-pub(crate) struct Smoothed {
+pub struct Smoothed {
+    /// Coefficients and kept columns.
     pub solution: Solution,
     /// The chosen multiplier λ (on unit-norm columns).
     pub lambda: f64,
@@ -170,7 +197,7 @@ impl LeastSquares {
     /// `GCV(λ) = n·RSS / (n − tr H)²` (Craven & Wahba, Numer. Math. 31 (1979) 377).
     /// `weights` is 0 for unpenalised columns. Hand-written for the same reason as the
     /// solver: a 60-column dense problem, nalgebra's Cholesky does the algebra.
-    pub(crate) fn solve_smoothed(&self, weights: &[f64]) -> Result<Smoothed, Error> {
+    pub fn solve_smoothed(&self, weights: &[f64]) -> Result<Smoothed, Error> {
         let base = self.solve()?;
         let idx: Vec<usize> = (0..self.n).filter(|&i| base.kept[i]).collect();
         let m = idx.len();
@@ -183,8 +210,8 @@ impl LeastSquares {
             }
         };
         let scale: Vec<f64> = idx.iter().map(|&i| 1.0 / g(i, i).sqrt()).collect();
-        let gs = nalgebra::DMatrix::from_fn(m, m, |a, b| g(idx[a], idx[b]) * scale[a] * scale[b]);
-        let bs = nalgebra::DVector::from_fn(m, |a, _| self.rhs[idx[a]] * scale[a]);
+        let gs = DMatrix::from_fn(m, m, |a, b| g(idx[a], idx[b]) * scale[a] * scale[b]);
+        let bs = DVector::from_fn(m, |a, _| self.rhs[idx[a]] * scale[a]);
         let rows = self.rows as f64;
         let mut best: Option<(f64, f64, f64, nalgebra::DVector<f64>)> = None;
         let lambdas =
@@ -206,14 +233,13 @@ impl LeastSquares {
                 best = Some((gcv, lambda, edf, c));
             }
         }
-        let (_, lambda, edf, c) =
-            best.ok_or_else(|| Error::Fit("penalised normal equations are singular".into()))?;
+        let (_, lambda, edf, c) = best.ok_or(Error::Singular)?;
         let mut coef = vec![0.0; n];
         for (d, &i) in idx.iter().enumerate() {
             coef[i] = c[d] * scale[d];
         }
         if coef.iter().any(|c| !c.is_finite()) {
-            return Err(Error::Fit("least-squares solution is not finite".into()));
+            return Err(Error::NotFinite);
         }
         Ok(Smoothed {
             solution: Solution {
@@ -226,58 +252,59 @@ impl LeastSquares {
     }
 }
 
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn recovers_coefficients_and_drops_duplicate_column() {
-        // y = 2 + 3 t ; column 2 duplicates column 1 (times 5) and must be dropped
-        let mut ls = LeastSquares::new(3);
-        for i in 0..20 {
-            let t = i as f64 * 0.1;
-            ls.add(&[(0, 1.0), (1, t), (2, 5.0 * t)], 2.0 + 3.0 * t);
-        }
-        let s = ls.solve().unwrap();
-        assert_eq!(s.kept, vec![true, true, false]);
-        assert!(
-            (s.coef[0] - 2.0).abs() < 1e-10 && (s.coef[1] - 3.0).abs() < 1e-10 && s.coef[2] == 0.0
-        );
-        assert!(ls.rss(&s.coef) < 1e-18);
-        // only the constant allowed: mean of y, RSS = Σ (y - ȳ)²
-        let m = ls.solve_masked(&[true, false, false]).unwrap();
-        assert!((m.coef[0] - 2.0 - 3.0 * 0.95).abs() < 1e-10);
-        let want: f64 = (0..20)
-            .map(|i| (3.0 * (i as f64 * 0.1 - 0.95)).powi(2))
-            .sum();
-        assert!((ls.rss(&m.coef) - want).abs() < 1e-9);
+/// Weighted least squares `min Σ_i w_i (y_i − rows_i · c)²` with 0/1 weights `w` (rows with
+/// `w_i > 0` enter) under the **truncated** rank policy: a column whose norm over the
+/// entering rows is below 1e-9 of the largest gets coefficient 0 (instead of an arbitrary
+/// huge value), the others are scaled to unit norm and solved by SVD with singular values
+/// below 1e-9 of the largest dropped (the minimum-norm solution).
+///
+/// Formula: `c = V Σ⁺ Uᵀ b` on the scaled live columns (Golub & Van Loan, Matrix
+/// Computations, 4th ed. 2013, §5.5.4). Returns all zeros when no row enters, no column is
+/// live or the SVD fails.
+/// Known bad cases: weights other than 0/1 are treated as 1 (rows are not scaled by √w).
+pub fn truncated_svd(rows: &[Vec<f64>], y: &[f64], w: &[f64]) -> Vec<f64> {
+    let p = rows.first().map_or(0, Vec::len);
+    let idx: Vec<usize> = (0..y.len()).filter(|&i| w[i] > 0.0).collect();
+    if p == 0 || idx.is_empty() {
+        return vec![0.0; p];
     }
-
-    #[test]
-    fn matches_nalgebra_svd_on_a_random_full_rank_problem() {
-        let (m, n) = (40, 5);
-        let mut a = nalgebra::DMatrix::<f64>::zeros(m, n);
-        let mut y = nalgebra::DVector::<f64>::zeros(m);
-        let mut ls = LeastSquares::new(n);
-        let mut s = 12345u64;
-        let mut rnd = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64 - 0.5
-        };
-        for i in 0..m {
-            let row: Vec<(usize, f64)> = (0..n).map(|j| (j, rnd())).collect();
-            for &(j, v) in &row {
-                a[(i, j)] = v;
-            }
-            y[i] = rnd();
-            ls.add(&row, y[i]);
+    let norms: Vec<f64> = (0..p)
+        .map(|j| {
+            idx.iter()
+                .map(|&i| rows[i][j] * rows[i][j])
+                .sum::<f64>()
+                .sqrt()
+        })
+        .collect();
+    let biggest = norms.iter().fold(0.0f64, |a, &b| a.max(b));
+    if biggest == 0.0 {
+        return vec![0.0; p];
+    }
+    // a column the surface cannot excite (e.g. rotation about the axis of a surface of
+    // revolution) gets coefficient 0 instead of an arbitrary huge value
+    let live: Vec<bool> = norms.iter().map(|&v| v > 1e-9 * biggest).collect();
+    let scale: Vec<f64> = norms
+        .iter()
+        .zip(&live)
+        .map(|(&v, &l)| if l { v } else { 1.0 })
+        .collect();
+    let a = DMatrix::from_fn(idx.len(), p, |r, j| {
+        if live[j] {
+            rows[idx[r]][j] / scale[j]
+        } else {
+            0.0
         }
-        let want = a.svd(true, true).solve(&y, 1e-12).unwrap();
-        let got = ls.solve().unwrap();
-        for j in 0..n {
-            assert!((got.coef[j] - want[j]).abs() < 1e-9, "{j}");
-        }
+    });
+    let b = DVector::from_iterator(idx.len(), idx.iter().map(|&i| y[i]));
+    let svd = a.svd(true, true);
+    let smax = svd.singular_values.max();
+    match svd.solve(&b, smax * 1e-9) {
+        Ok(x) => (0..p)
+            .map(|j| if live[j] { x[j] / scale[j] } else { 0.0 })
+            .collect(),
+        Err(_) => vec![0.0; p],
     }
 }
+
+#[cfg(test)]
+mod tests;
