@@ -5,11 +5,13 @@
 //! updates all K modes of a bin (mode k's Wiener filter uses only bin-local sums and the
 //! previous ω_k, so the bin loop and the mode loop commute), which keeps the work in cache.
 //!
-//! Files: `admm` (parameters and their validation, the iteration, the automatic choice of K)
-//! and `sweep` (one pass over the spectrum: the portable kernel and one AVX2 kernel serving
-//! f64 and f32).
+//! Files: `admm` (parameters and their validation, the iteration, the automatic choice of K),
+//! `sweep` (one pass over the spectrum: the portable kernel and one AVX2 kernel serving
+//! f64 and f32) and `lanes` (the AVX2 register operations over the lane type).
 
 mod admm;
+#[cfg(target_arch = "x86_64")]
+mod lanes;
 mod sweep;
 #[cfg(test)]
 mod tests;
