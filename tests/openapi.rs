@@ -1,5 +1,5 @@
 //! `openapi.yaml` and the router agree: every `.route("PATH", ...)` literal in
-//! `src/api/*.rs` is a path of the spec, and every spec path is routed.
+//! `src/api/**/*.rs` is a path of the spec, and every spec path is routed.
 
 use std::collections::BTreeSet;
 use std::path::Path;
@@ -26,14 +26,20 @@ fn route_literals(src: &str) -> Vec<String> {
     out
 }
 
+/// The route literals of every `.rs` file under `src/api`, subfolders included (a resource
+/// split into a folder keeps its routes in its `mod.rs`).
 fn routed_paths() -> BTreeSet<String> {
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("src/api");
+    let mut dirs = vec![Path::new(env!("CARGO_MANIFEST_DIR")).join("src/api")];
     let mut paths = BTreeSet::new();
-    for entry in std::fs::read_dir(&dir).expect("src/api exists") {
-        let path = entry.unwrap().path();
-        if path.extension().is_some_and(|e| e == "rs") {
-            let src = std::fs::read_to_string(&path).unwrap();
-            paths.extend(route_literals(&src));
+    while let Some(dir) = dirs.pop() {
+        for entry in std::fs::read_dir(&dir).expect("src/api exists") {
+            let path = entry.unwrap().path();
+            if path.is_dir() {
+                dirs.push(path);
+            } else if path.extension().is_some_and(|e| e == "rs") {
+                let src = std::fs::read_to_string(&path).unwrap();
+                paths.extend(route_literals(&src));
+            }
         }
     }
     paths

@@ -1,0 +1,59 @@
+//! Volumetric error maps (CONTRACT "Volumetric error map"; seeds 001, 004; ISO 230-1):
+//! `PUT/GET/DELETE /v1/machines/{machine}/volumetric-map`, `POST .../predict`,
+//! `GET .../table` (compensation table CSV). Also the one `From<volumetric::Error> for
+//! ApiError` and [`load_map`] for other capabilities (the gap diagnosis).
+//!
+//! Files: `request` (bodies, query strings and their limits, parsed into the core's
+//! options), `answer` (response bodies), `handlers` (the handlers and the model store).
+
+mod answer;
+mod handlers;
+mod request;
+
+use axum::Router;
+use axum::routing::{get, post};
+
+use super::AppState;
+use super::error::ApiError;
+use crate::volumetric;
+use handlers::{delete_map, get_map, predict, put_map, table};
+
+pub use handlers::{MODEL_KIND, load_map};
+pub use request::{MAX_EPOCHS, MAX_NODES, MAX_POINTS, MAX_SAMPLE_PASSES};
+
+/// Routes of this resource.
+pub fn routes() -> Router<AppState> {
+    Router::new()
+        .route(
+            "/v1/machines/{machine}/volumetric-map",
+            get(get_map).put(put_map).delete(delete_map),
+        )
+        .route(
+            "/v1/machines/{machine}/volumetric-map/predict",
+            post(predict),
+        )
+        .route("/v1/machines/{machine}/volumetric-map/table", get(table))
+}
+
+impl From<volumetric::Error> for ApiError {
+    fn from(e: volumetric::Error) -> Self {
+        use volumetric::Error as E;
+        match e {
+            E::Empty { .. }
+            | E::LengthMismatch { .. }
+            | E::NonFinite { .. }
+            | E::UnknownModel(_)
+            | E::InvalidOption { .. }
+            | E::Csv { .. }
+            | E::AxisLine { .. }
+            | E::TableTooLarge { .. } => ApiError::bad_request(e.to_string()),
+            E::TooFewNodes { .. } | E::FlatAxis { .. } | E::NotAGrid { .. } => {
+                ApiError::unprocessable(e.to_string())
+            }
+            E::Fit(_) => ApiError::unprocessable(format!(
+                "the map could not be fitted to these nodes ({e}); check them for outliers or try another model"
+            )),
+            E::ModelFormat(_) => ApiError::internal(e),
+        }
+    }
+}

@@ -1,0 +1,21 @@
+//! Variational mode decomposition (Dragomiretskiy & Zosso 2014), ADMM in the frequency domain.
+//!
+//! Written here (no crate): vmd-rs is an unreviewed port (DESIGN.md). The iteration is the
+//! published one (paper 002 eqs. 5-8); it is arranged so that one pass over the spectrum
+//! updates all K modes of a bin (mode k's Wiener filter uses only bin-local sums and the
+//! previous ω_k, so the bin loop and the mode loop commute), which keeps the work in cache.
+//!
+//! Files: `admm` (parameters and their validation, the iteration, the automatic choice of K),
+//! `sweep` (one pass over the spectrum: the portable kernel and one AVX2 kernel serving
+//! f64 and f32) and `lanes` (the AVX2 register operations over the lane type).
+
+mod admm;
+#[cfg(target_arch = "x86_64")]
+mod lanes;
+mod sweep;
+#[cfg(test)]
+mod tests;
+
+pub use admm::{
+    Convergence, F32_MIN_BINS, VmdParams, VmdResult, choose_k, mean_instantaneous_frequency, vmd,
+};

@@ -1,0 +1,276 @@
+//! Tests of VMD: decompositions, parameter checks, stopping rules, the f32 path against the
+//! f64 one, and the fast sweeps against a naive reference sweep.
+
+use super::admm::admm;
+use super::sweep::{BLOCK, Kernel, Real, kernel_f32, kernel_f64, sweep, sweep_generic};
+use super::*;
+use realfft::RealFftPlanner;
+
+#[test]
+fn separates_three_tones() {
+    let x: Vec<f64> = (0..512)
+        .map(|k| {
+            let t = k as f64;
+            (2.0 * std::f64::consts::PI * 0.02 * t).cos()
+                + 0.5 * (2.0 * std::f64::consts::PI * 0.12 * t).cos()
+        })
+        .collect();
+    let r = vmd(
+        &x,
+        &VmdParams {
+            k: Some(2),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert!((r.omega[0] - 0.02).abs() < 2e-3, "{:?}", r.omega);
+    assert!((r.omega[1] - 0.12).abs() < 2e-3, "{:?}", r.omega);
+    assert_eq!(r.modes[0].len(), 512);
+}
+
+#[test]
+fn odd_length_keeps_every_sample() {
+    let x: Vec<f64> = (0..255).map(|k| (0.1 * k as f64).sin()).collect();
+    let r = vmd(
+        &x,
+        &VmdParams {
+            k: Some(1),
+            alpha: 1.0,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    assert_eq!(r.modes[0].len(), 255);
+    let err = x
+        .iter()
+        .zip(&r.modes[0])
+        .map(|(a, b)| (a - b).abs())
+        .fold(0.0, f64::max);
+    assert!(err < 5e-3, "{err}");
+}
+
+#[test]
+fn rejects_bad_params_and_input() {
+    let x = vec![1.0; 16];
+    assert!(
+        vmd(
+            &x,
+            &VmdParams {
+                alpha: -1.0,
+                ..Default::default()
+            }
+        )
+        .is_err()
+    );
+    assert!(
+        vmd(
+            &x,
+            &VmdParams {
+                k: Some(0),
+                ..Default::default()
+            }
+        )
+        .is_err()
+    );
+    assert!(vmd(&[1.0, f64::NAN, 2.0, 3.0], &VmdParams::default()).is_err());
+    assert!(vmd(&[1.0, 2.0], &VmdParams::default()).is_err());
+}
+
+#[test]
+fn relative_convergence_is_scale_free_absolute_is_not() {
+    let x: Vec<f64> = (0..600)
+        .map(|k| {
+            let t = k as f64;
+            (2.0 * std::f64::consts::PI * 0.03 * t).sin()
+                + 0.3 * (2.0 * std::f64::consts::PI * 0.2 * t).sin()
+        })
+        .collect();
+    let big: Vec<f64> = x.iter().map(|v| v * 1000.0).collect();
+    let run = |x: &[f64], convergence| {
+        vmd(
+            x,
+            &VmdParams {
+                k: Some(2),
+                tol: 1e-6,
+                convergence,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    };
+    let (r1, r2) = (
+        run(&x, Convergence::Relative),
+        run(&big, Convergence::Relative),
+    );
+    assert_eq!(r1.iterations, r2.iterations);
+    assert!(r1.u_diff < 1e-6 && r1.iterations < 499, "{}", r1.iterations);
+    let (a1, a2) = (
+        run(&x, Convergence::Absolute),
+        run(&big, Convergence::Absolute),
+    );
+    assert!(
+        a2.iterations > a1.iterations,
+        "{} {}",
+        a1.iterations,
+        a2.iterations
+    );
+    for (p, q) in r1.omega.iter().zip(&a1.omega) {
+        assert!((p - q).abs() < 1e-3, "{:?} {:?}", r1.omega, a1.omega);
+    }
+}
+
+#[test]
+fn f32_iteration_matches_f64() {
+    // The f32 path (long spectra) against the f64 one on the same input: modes to 1e-6
+    // of the signal's amplitude after 40 iterations.
+    let n = 8192;
+    let x: Vec<f64> = (0..n)
+        .map(|k| {
+            let t = k as f64;
+            0.04 * (2.0 * std::f64::consts::PI * 0.004 * t).sin()
+                + 0.01 * (2.0 * std::f64::consts::PI * 0.1 * t).cos()
+                + 0.005 * ((k * 7919 % 1000) as f64 / 500.0 - 1.0)
+        })
+        .collect();
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(n);
+    let mut buf = x.clone();
+    let mut spec = fwd.make_output_vec();
+    fwd.process(&mut buf, &mut spec).unwrap();
+    let m = n / 2;
+    let power: Vec<f64> = spec[..m].iter().map(|c| c.norm_sqr()).collect();
+    let freqs: Vec<f64> = (0..m).map(|b| b as f64 / n as f64).collect();
+    let p = VmdParams {
+        k: Some(4),
+        max_iter: 41,
+        tol: 1e-300,
+        ..Default::default()
+    };
+    let mut om64: Vec<f64> = (0..4).map(|k| 0.125 * k as f64).collect();
+    let mut om32 = om64.clone();
+    let (c64, _, _) = admm::<f64>(kernel_f64, &power, &freqs, &mut om64, &p);
+    let (c32, _, _) = admm::<f32>(kernel_f32, &power, &freqs, &mut om32, &p);
+    for (a, b) in om64.iter().zip(&om32) {
+        assert!((a - b).abs() < 1e-6, "{om64:?} {om32:?}");
+    }
+    for (a, b) in c64.iter().zip(&c32) {
+        let d = a
+            .iter()
+            .zip(b)
+            .map(|(u, v)| (u - v).abs())
+            .fold(0.0, f64::max);
+        assert!(d < 1e-5, "coefficient difference {d}");
+    }
+}
+
+#[test]
+fn instantaneous_frequency_of_a_tone() {
+    let x: Vec<f64> = (0..1000)
+        .map(|k| (2.0 * std::f64::consts::PI * 0.05 * k as f64).sin())
+        .collect();
+    assert!((mean_instantaneous_frequency(&x) - 0.05).abs() < 1e-3);
+}
+
+/// The sweep written the obvious way: bin by bin, modes in order (Gauss-Seidel), the sum of
+/// the other modes taken afresh instead of a running total, f64 throughout. Returns the per-mode
+/// (Σν|û_k|², Σ|û_k|², Σ|Δû_k|²). The slow oracle of every sweep kernel.
+fn reference_sweep<C: Real>(
+    c: &mut [Vec<C>],
+    power: &[C],
+    target: Option<&[C]>,
+    freqs: &[C],
+    omega: &[f64],
+    alpha: f64,
+) -> [Vec<f64>; 3] {
+    let k_modes = omega.len();
+    let mut sums = [vec![0.0; k_modes], vec![0.0; k_modes], vec![0.0; k_modes]];
+    for b in 0..power.len() {
+        let (p, nu) = (power[b].to64(), freqs[b].to64());
+        let tg = target.map_or(1.0, |t| t[b].to64());
+        for k in 0..k_modes {
+            let others: f64 = (0..k_modes)
+                .filter(|&i| i != k)
+                .map(|i| c[i][b].to64())
+                .sum();
+            let old = c[k][b].to64();
+            let new = (tg - others) / (1.0 + alpha * (nu - omega[k]).powi(2));
+            sums[0][k] += nu * new * new * p;
+            sums[1][k] += new * new * p;
+            sums[2][k] += (new - old) * (new - old) * p;
+            c[k][b] = C::from64(new);
+        }
+    }
+    sums
+}
+
+/// A spectrum of 2 blocks and 13 bins (so every kernel has full blocks, a short block and
+/// bins past the last full register), K = 3 modes from a non-zero start, with and without
+/// a target; returns (c, power, target, freqs, omega).
+#[allow(clippy::type_complexity)]
+fn sweep_case<C: Real>() -> (Vec<Vec<C>>, Vec<C>, Vec<C>, Vec<C>, Vec<f64>) {
+    let m = 2 * BLOCK + 13;
+    let unit = |i: usize, salt: usize| ((i * 7919 + salt * 104_729) % 1000) as f64 / 1000.0;
+    let c = (0..3)
+        .map(|k| (0..m).map(|b| C::from64(0.5 * unit(b, k))).collect())
+        .collect();
+    let power = (0..m).map(|b| C::from64(0.1 + 3.0 * unit(b, 7))).collect();
+    let target = (0..m).map(|b| C::from64(0.8 + 0.4 * unit(b, 9))).collect();
+    let freqs = (0..m)
+        .map(|b| C::from64(b as f64 / (2 * m) as f64))
+        .collect();
+    (c, power, target, freqs, vec![0.01, 0.15, 0.37])
+}
+
+/// Runs `kernel` (through `sweep`, on 1 and 2 threads, with and without a target, three
+/// sweeps in a row) against [`reference_sweep`]: coefficients to `tol_c`, sums to `tol_s`
+/// relative (Σ|Δû_k|² to 100·`tol_s`: it is a sum of squared small differences, so storage
+/// rounding of c weighs more in it).
+fn check_kernel_against_reference<C: Real>(kernel: Kernel<C>, tol_c: f64, tol_s: f64) {
+    let (c0, power, target, freqs, omega) = sweep_case::<C>();
+    for threads in [1, 2] {
+        for tgt in [None, Some(target.as_slice())] {
+            let (mut fast, mut slow) = (c0.clone(), c0.clone());
+            for _ in 0..3 {
+                let got = sweep(
+                    kernel, &mut fast, &power, tgt, &freqs, &omega, 2000.0, threads,
+                );
+                let want = reference_sweep(&mut slow, &power, tgt, &freqs, &omega, 2000.0);
+                for (name, g, w, tol) in [
+                    ("num", &got.num, &want[0], tol_s),
+                    ("den", &got.den, &want[1], tol_s),
+                    ("dif", &got.dif, &want[2], 100.0 * tol_s),
+                ] {
+                    for (a, b) in g.iter().zip(w) {
+                        assert!(
+                            (a - b).abs() <= tol * b.abs().max(1e-300),
+                            "{name} {a} vs {b} (threads {threads})"
+                        );
+                    }
+                }
+                let d = fast
+                    .iter()
+                    .flatten()
+                    .zip(slow.iter().flatten())
+                    .map(|(u, v)| (u.to64() - v.to64()).abs())
+                    .fold(0.0, f64::max);
+                assert!(d <= tol_c, "coefficient difference {d} (threads {threads})");
+            }
+        }
+    }
+}
+
+#[test]
+fn kernel_f64_matches_reference_sweep() {
+    check_kernel_against_reference::<f64>(kernel_f64, 1e-13, 1e-11);
+}
+
+#[test]
+fn kernel_f32_matches_reference_sweep() {
+    check_kernel_against_reference::<f32>(kernel_f32, 2e-6, 1e-5);
+}
+
+#[test]
+fn portable_sweep_matches_reference_sweep() {
+    check_kernel_against_reference::<f64>(sweep_generic::<f64>, 1e-13, 1e-11);
+    check_kernel_against_reference::<f32>(sweep_generic::<f32>, 2e-6, 1e-5);
+}
