@@ -13,7 +13,7 @@ use super::AppState;
 use super::error::{ApiError, ApiResult};
 use super::extract::ApiJson;
 use super::lookup::require_machine;
-use crate::motion::{self, ContourPrediction, DEFAULT_PERIOD_S, Machine, predict_contour_error};
+use crate::motion::{ContourPrediction, DEFAULT_PERIOD_S, Machine, predict_contour_error};
 
 /// Routes of this resource.
 pub fn routes() -> Router<AppState> {
@@ -175,30 +175,4 @@ pub fn encode_answer(m: &Machine, p: &ContourPrediction) -> serde_json::Result<V
     let mut out = Vec::with_capacity(ce.len() * 120);
     serde_json::to_writer(&mut out, &answer)?;
     Ok(out)
-}
-
-/// G-code and machine problems are the caller's to fix (422 naming line/code or field);
-/// malformed numeric arguments are 400.
-impl From<motion::Error> for ApiError {
-    fn from(e: motion::Error) -> Self {
-        use motion::Error as E;
-        match e {
-            E::UnsupportedCode { line, code } => ApiError::unprocessable(format!(
-                "gcode line {line}: unsupported code {code}. Supported: G0 G1 G2 G3 G4 G17 G18 G19 \
-                 G20 G21 G40 G43.4 G49 G54 G80 G90 G91 G93 G94, TRAORI/TRAFOOF, M0-M9 M30, words \
-                 X Y Z A C I J K R F N S T H D P"
-            )),
-            E::Gcode { line, message } => {
-                ApiError::unprocessable(format!("gcode line {line}: {message}"))
-            }
-            E::TooManyPeriods { .. } | E::EmptyProgram => ApiError::unprocessable(e.to_string()),
-            E::InvalidServo { .. } | E::UnstableServo { .. } | E::InvalidMachine(_) => {
-                ApiError::unprocessable(format!("machine definition: {e}"))
-            }
-            E::InvalidPeriod(_)
-            | E::InvalidParameter { .. }
-            | E::EmptyCommand
-            | E::NonFiniteCommand { .. } => ApiError::bad_request(e.to_string()),
-        }
-    }
 }

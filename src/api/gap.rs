@@ -87,19 +87,6 @@ struct PartValidationBody {
     approach: Option<Vec<[f64; 3]>>,
 }
 
-impl From<gap::Error> for ApiError {
-    fn from(e: gap::Error) -> Self {
-        match e {
-            gap::Error::Servo { .. } => ApiError::unprocessable(format!(
-                "{e}. Fix the machine's servo model with PUT /v1/machines/{{machine}}"
-            )),
-            gap::Error::Shape { .. }
-            | gap::Error::NonFinite { .. }
-            | gap::Error::Invalid { .. } => ApiError::bad_request(e.to_string()),
-        }
-    }
-}
-
 /// Rows `[[x, y(, z)]; n]` → per-axis columns, checking shape, size and finiteness.
 pub fn rows_to_columns(field: &str, rows: &[Vec<f64>]) -> ApiResult<Vec<Vec<f64>>> {
     let Some(first) = rows.first() else {

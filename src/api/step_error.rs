@@ -53,46 +53,6 @@ pub fn routes() -> Router<AppState> {
         )
 }
 
-impl From<geometry::Error> for ApiError {
-    fn from(e: geometry::Error) -> Self {
-        use geometry::Error as G;
-        match e {
-            G::InSegment { index, source } => {
-                let inner: ApiError = (*source).into();
-                let detail = format!("segments[{index}]: {}", inner.detail());
-                if inner.status() == StatusCode::BAD_REQUEST {
-                    ApiError::bad_request(detail)
-                } else {
-                    ApiError::unprocessable(detail)
-                }
-            }
-            G::NonFinite { .. } | G::InvalidParameter { .. } | G::Shape { .. } => {
-                ApiError::bad_request(e.to_string())
-            }
-            G::TooFewPoints { .. }
-            | G::DuplicatePoints { .. }
-            | G::ZeroLengthStep
-            | G::InconsistentRadius { .. } => ApiError::unprocessable(e.to_string()),
-        }
-    }
-}
-
-impl From<nn::Error> for ApiError {
-    fn from(e: nn::Error) -> Self {
-        use nn::Error as N;
-        match e {
-            N::InvalidParameter { .. }
-            | N::TooFewLayers(_)
-            | N::EmptyLayer { .. }
-            | N::NonFinite { .. } => ApiError::bad_request(e.to_string()),
-            N::TooFewSamples { .. } | N::Diverged { .. } | N::Incompatible(_) | N::Shape { .. } => {
-                ApiError::unprocessable(e.to_string())
-            }
-            N::Format(_) => ApiError::internal(e),
-        }
-    }
-}
-
 // ---------- lean request decoding ----------
 
 fn check_tool_radius(r: f64) -> ApiResult<()> {

@@ -49,29 +49,6 @@ pub fn routes() -> Router<AppState> {
         .route("/v1/machines/{machine}/volumetric-map/table", get(table))
 }
 
-impl From<volumetric::Error> for ApiError {
-    fn from(e: volumetric::Error) -> Self {
-        use volumetric::Error as E;
-        match e {
-            E::Empty { .. }
-            | E::LengthMismatch { .. }
-            | E::NonFinite { .. }
-            | E::UnknownModel(_)
-            | E::InvalidOption { .. }
-            | E::Csv { .. }
-            | E::AxisLine { .. }
-            | E::TableTooLarge { .. } => ApiError::bad_request(e.to_string()),
-            E::TooFewNodes { .. } | E::FlatAxis { .. } | E::NotAGrid { .. } => {
-                ApiError::unprocessable(e.to_string())
-            }
-            E::Fit(_) => ApiError::unprocessable(format!(
-                "the map could not be fitted to these nodes ({e}); check them for outliers or try another model"
-            )),
-            E::ModelFormat(_) => ApiError::internal(e),
-        }
-    }
-}
-
 /// Options that may come in the JSON body or, for CSV uploads, the query string.
 #[derive(Debug, Default, Deserialize)]
 #[serde(deny_unknown_fields)]
