@@ -24,6 +24,7 @@
 pub mod api;
 pub mod bspline;
 pub mod cli;
+pub mod codec;
 pub mod compensation;
 pub mod config;
 pub mod gap;
@@ -34,5 +35,6 @@ pub mod nn;
 pub mod parallel;
 pub mod server;
 pub mod signal;
+pub mod step_error;
 pub mod store;
 pub mod volumetric;

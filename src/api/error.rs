@@ -5,7 +5,7 @@
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
-use crate::{compensation, gap, geometry, jobs, motion, nn, signal, volumetric};
+use crate::{codec, compensation, gap, geometry, jobs, motion, nn, signal, step_error, volumetric};
 
 /// An error answered to an HTTP client. 4xx variants carry a sentence saying what to fix;
 /// `Internal` carries the cause for the log only (the body stays opaque).
@@ -342,6 +342,27 @@ impl From<volumetric::Error> for ApiError {
                 "the map could not be fitted to these nodes ({e}); check them for outliers or try another model"
             )),
             E::ModelFormat(_) => ApiError::internal(e),
+        }
+    }
+}
+
+/// A body the segment decoder refuses is the caller's to fix: 400 with its sentence.
+impl From<codec::DecodeError> for ApiError {
+    fn from(e: codec::DecodeError) -> Self {
+        ApiError::BadRequest(e.0)
+    }
+}
+
+/// Labelling and training failures as their core's (geometry, nn); too few samples to split
+/// is 422; unreadable model metadata is the server's fault (500).
+impl From<step_error::Error> for ApiError {
+    fn from(e: step_error::Error) -> Self {
+        use step_error::Error as E;
+        match e {
+            E::Geometry(e) => e.into(),
+            E::Nn(e) => e.into(),
+            E::TooFewToSplit => ApiError::unprocessable(e.to_string()),
+            E::Metadata(_) => ApiError::internal(e),
         }
     }
 }
