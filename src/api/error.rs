@@ -266,7 +266,10 @@ impl From<gap::Error> for ApiError {
             )),
             gap::Error::Shape { .. }
             | gap::Error::NonFinite { .. }
-            | gap::Error::Invalid { .. } => ApiError::bad_request(e.to_string()),
+            | gap::Error::Invalid { .. }
+            | gap::Error::Request(_) => ApiError::bad_request(e.to_string()),
+            gap::Error::TooManySamples { .. } => ApiError::payload_too_large(e.to_string()),
+            gap::Error::MissingAxes { .. } => ApiError::unprocessable(e.to_string()),
         }
     }
 }
@@ -302,7 +305,11 @@ impl From<motion::Error> for ApiError {
             E::InvalidServo { .. } | E::UnstableServo { .. } | E::InvalidMachine(_) => {
                 ApiError::unprocessable(format!("machine definition: {e}"))
             }
+            E::NotSimulable { .. } | E::NotAServo { .. } | E::AxisServo { .. } => {
+                ApiError::unprocessable(e.to_string())
+            }
             E::InvalidPeriod(_)
+            | E::PeriodOutOfRange(_)
             | E::InvalidParameter { .. }
             | E::EmptyCommand
             | E::NonFiniteCommand { .. } => ApiError::bad_request(e.to_string()),
