@@ -107,7 +107,9 @@ pub fn solve_batch(
     parts: &[SegmentBatch],
 ) -> Result<Vec<StepError>, geometry::Error> {
     let n: usize = parts.iter().map(SegmentBatch::len).sum();
-    let threads = crate::parallel::resolve_threads(0).min(MAX_THREADS);
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |t| t.get())
+        .min(MAX_THREADS);
     // Segments `from..to` of the whole batch, across the parts.
     let range = |from: usize, to: usize| {
         let mut skip = from;
