@@ -99,7 +99,7 @@ const MAX_THREADS: usize = 8;
 const MIN_PER_THREAD: usize = 2048;
 
 /// Exact step errors of the segments of `parts` (in order), split over the machine's cores
-/// (at most [`MAX_THREADS`]) by [`geometry::step_errors_split`], each thread solving four
+/// (at most eight) by [`geometry::step_errors_split`], each thread solving four
 /// segments side by side. Units: mm. Errors name the first bad segment's index in the whole
 /// batch ([`geometry::Error::InSegment`]).
 pub fn solve_batch(

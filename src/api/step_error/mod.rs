@@ -1,6 +1,6 @@
 //! Step error of ball-end finishing over HTTP (CONTRACT "Step error"; seed 000): the exact
-//! geometric route ([`exact`]), sample generation ([`samples`]), training / fine-tuning the
-//! network as a job and prediction from it ([`model`]). The work is the `step_error` core's
+//! geometric route (`exact.rs`), sample generation (`samples.rs`), training / fine-tuning the
+//! network as a job and prediction from it (`model.rs`). The work is the `step_error` core's
 //! and the body decoding the `codec`'s; statuses are decided in `api/error.rs`.
 
 mod exact;
