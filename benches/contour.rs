@@ -142,7 +142,7 @@ fn run(name: &str, five: bool, text: &str) {
         report: rep,
     };
     let (w_enc, c_enc, bytes) =
-        timed(|| truecut::api::contour::encode_answer(&m, &prediction).expect("encodes"));
+        timed(|| truecut::wire::contour::encode_answer(&m, &prediction).expect("encodes"));
     let ContourPrediction {
         commanded: traj,
         actual,

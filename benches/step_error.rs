@@ -434,29 +434,19 @@ fn http() {
         "typed serde decode + solve (no HTTP): {:>10.0} segments/s",
         1e5 / t_serde
     );
-    let mut headers = axum::http::HeaderMap::new();
-    headers.insert("content-type", "application/json".parse().unwrap());
-    let t_lean = best_of(3, || {
-        truecut::api::step_error::decode_segments(&headers, &body)
-            .unwrap()
-            .len()
-    });
+    let t_lean = best_of(3, || truecut::codec::decode(&body, 0).unwrap().len());
     println!(
         "lean decode only (no HTTP, all cores): {:>10.0} segments/s",
         1e5 / t_lean
     );
-    let t_lean1 = best_of(3, || {
-        truecut::api::step_error::decode_json(&body, 1)
-            .unwrap()
-            .len()
-    });
+    let t_lean1 = best_of(3, || truecut::codec::decode(&body, 1).unwrap().len());
     println!(
         "lean decode only (no HTTP, 1 thread): {:>10.0} segments/s",
         1e5 / t_lean1
     );
-    let decoded = truecut::api::step_error::decode_segments(&headers, &body).unwrap();
+    let decoded = truecut::codec::decode(&body, 0).unwrap();
     let t_solve = best_of(3, || {
-        truecut::api::step_error::solve_batch(R, &decoded.parts)
+        truecut::step_error::solve_batch(R, &decoded.parts)
             .unwrap()
             .len()
     });

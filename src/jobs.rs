@@ -2,7 +2,8 @@
 //!
 //! At most `workers` closures run at once (on tokio's blocking threads); at most
 //! `workers + queue` are admitted (running or waiting). Beyond that callers get
-//! 503 + Retry-After instead of piling up. Background jobs ([`JobPool::submit`]) are
+//! [`Error::Full`] (answered 503 + Retry-After by `api`) instead of piling up. Background
+//! jobs ([`JobPool::submit`]) are
 //! recorded in the database; the ones a shutdown or crash interrupted are marked failed
 //! when the instance starts again ([`JobPool::start`]).
 
@@ -14,11 +15,32 @@ use std::time::{Duration, Instant};
 use serde::Serialize;
 use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
 
-use crate::api::{ApiError, ApiResult};
 use crate::store::Store;
 
 /// Seconds a rejected caller is told to wait (`Retry-After`).
 pub const RETRY_AFTER_S: u64 = 2;
+
+/// Why the pool did not run or record a piece of work. The pool knows nothing of HTTP:
+/// `api/error.rs` decides the statuses (503 + Retry-After for the rejections, 500 otherwise).
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    /// Every worker is busy and the queue is full: retry after [`RETRY_AFTER_S`].
+    #[error("all {workers} workers are busy and the queue is full; retry in {RETRY_AFTER_S} s")]
+    Full {
+        /// Number of worker slots.
+        workers: usize,
+    },
+    /// The pool stopped admitting work ([`JobPool::shutdown`]).
+    #[error("the server is shutting down; retry on another instance or after restart")]
+    ShuttingDown,
+    /// The worker running the closure failed (a panic) or the pool closed under it.
+    #[error("{0}")]
+    Worker(String),
+    /// The job could not be recorded.
+    #[error("{0:#}")]
+    Store(#[from] anyhow::Error),
+}
 
 /// Progress of a background job, a fraction in 0..1, shared with the running closure.
 #[derive(Debug, Default)]
@@ -134,31 +156,28 @@ impl JobPool {
         })
     }
 
-    fn admit(&self) -> ApiResult<OwnedSemaphorePermit> {
-        self.inner.admission.clone().try_acquire_owned().map_err(|e| {
-            self.inner.rejected.fetch_add(1, Ordering::Relaxed);
-            match e {
-                tokio::sync::TryAcquireError::Closed => ApiError::unavailable(
-                    "the server is shutting down; retry on another instance or after restart",
-                    RETRY_AFTER_S,
-                ),
-                tokio::sync::TryAcquireError::NoPermits => ApiError::unavailable(
-                    format!(
-                        "all {} workers are busy and the queue is full; retry in {RETRY_AFTER_S} s",
-                        self.inner.worker_count
-                    ),
-                    RETRY_AFTER_S,
-                ),
-            }
-        })
+    fn admit(&self) -> Result<OwnedSemaphorePermit, Error> {
+        self.inner
+            .admission
+            .clone()
+            .try_acquire_owned()
+            .map_err(|e| {
+                self.inner.rejected.fetch_add(1, Ordering::Relaxed);
+                match e {
+                    tokio::sync::TryAcquireError::Closed => Error::ShuttingDown,
+                    tokio::sync::TryAcquireError::NoPermits => Error::Full {
+                        workers: self.inner.worker_count,
+                    },
+                }
+            })
     }
 
-    /// Runs CPU-heavy work synchronously for a request; 503 + Retry-After when the pool
-    /// is full. A panic in `f` becomes a 500.
+    /// Runs CPU-heavy work synchronously for a request; [`Error::Full`] (503 + Retry-After)
+    /// when the pool is full. A panic in `f` becomes [`Error::Worker`] (a 500).
     pub async fn run<T: Send + 'static>(
         &self,
         f: impl FnOnce() -> T + Send + 'static,
-    ) -> ApiResult<T> {
+    ) -> Result<T, Error> {
         let admitted = self.admit()?;
         let inner = self.inner.clone();
         let worker = {
@@ -168,7 +187,7 @@ impl JobPool {
                 .clone()
                 .acquire_owned()
                 .await
-                .map_err(ApiError::internal)?
+                .map_err(|e| Error::Worker(e.to_string()))?
         };
         let inner2 = inner.clone();
         tokio::task::spawn_blocking(move || {
@@ -178,17 +197,17 @@ impl JobPool {
             f()
         })
         .await
-        .map_err(|e| ApiError::internal(format!("worker failed: {e}")))
+        .map_err(|e| Error::Worker(format!("worker failed: {e}")))
     }
 
     /// Long work: records a job and returns its id at once (answer `202 {"job": id}`);
     /// `f` reports progress 0..1 and returns the result JSON or an error sentence.
-    /// Poll with `GET /v1/jobs/{id}`. 503 + Retry-After when the pool is full.
+    /// Poll with `GET /v1/jobs/{id}`. [`Error::Full`] (503 + Retry-After) when the pool is full.
     pub async fn submit(
         &self,
         kind: &str,
         f: impl FnOnce(&Progress) -> Result<serde_json::Value, String> + Send + 'static,
-    ) -> ApiResult<String> {
+    ) -> Result<String, Error> {
         let admitted = self.admit()?;
         let id = uuid::Uuid::now_v7().to_string();
         self.inner.store.insert_job(&id, kind).await?;

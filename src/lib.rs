@@ -19,10 +19,14 @@
 //! - [`motion`]: contour error from G-code (seed 003): G-code reader, RTCP interpolation, kinematics, servo cascade, contour error.
 //! - [`signal`]: machining-error decomposition (seed 002): VMD, EMD, wavelets, Whittaker smoothing, screening, coarse-to-fine in 1-D and on 2-D grids.
 //! - [`compensation`]: normal-offset compensation (seed 002): compensated points, reconstructed compensated surface, compensated CL points.
-//! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check.
+//! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check; the motion-gap request.
+//! - [`step_error`]: step error as a capability: flat segment batches solved on all cores, network training and the model file's metadata.
+//! - [`codec`]: hand-written fast decoders for large bodies (step-error segment batches), with their own error.
+//! - [`wire`]: serde types of the HTTP bodies that both the server and the CLI use.
 
 pub mod api;
 pub mod cli;
+pub mod codec;
 pub mod compensation;
 pub mod config;
 pub mod gap;
@@ -33,5 +37,7 @@ pub mod nn;
 pub mod numeric;
 pub mod server;
 pub mod signal;
+pub mod step_error;
 pub mod store;
 pub mod volumetric;
+pub mod wire;

@@ -10,6 +10,7 @@ use std::time::Duration;
 use axum::response::IntoResponse;
 use helpers::*;
 use serde_json::{Value, json};
+use truecut::api::ApiError;
 use truecut::jobs::JobPool;
 use truecut::store::Store;
 
@@ -45,15 +46,20 @@ async fn back_pressure(app: TestApp) {
         }));
     }
     eventually("two running", || pool.running() == 2).await;
+    // The pool answers its own error; api/error.rs makes it 503 + Retry-After.
     let err = pool.run(|| 1).await.expect_err("pool is full");
-    let resp = err.into_response();
+    assert!(
+        matches!(err, truecut::jobs::Error::Full { workers: 2 }),
+        "{err}"
+    );
+    let resp = ApiError::from(err).into_response();
     assert_eq!(resp.status(), 503);
     assert_eq!(resp.headers()["retry-after"], "2");
     let err = pool
         .submit("x", |_| Ok(json!(1)))
         .await
         .expect_err("pool is full");
-    assert_eq!(err.status(), 503);
+    assert_eq!(ApiError::from(err).status(), 503);
     // The gauges and the rejection counter show in /metrics.
     let text = reqwest::get(format!("http://{}/metrics", server.addr()))
         .await
@@ -126,7 +132,7 @@ async fn job_lifecycle(app: TestApp) {
     }
     // A panic in a synchronous run is a 500, not a crash.
     let err = pool.run(|| -> u8 { panic!("boom") }).await.err().unwrap();
-    assert_eq!(err.status(), 500);
+    assert_eq!(ApiError::from(err).status(), 500);
     assert_problem(app.get("/v1/jobs/nope").await, 404, &["job 'nope'"]).await;
 }
 on_both_backends!(job_lifecycle);

@@ -31,19 +31,6 @@ pub fn routes() -> Router<AppState> {
     )
 }
 
-impl From<compensation::Error> for ApiError {
-    fn from(e: compensation::Error) -> Self {
-        use compensation::Error as E;
-        match e {
-            E::BadSize { .. } | E::BadToolRadius => ApiError::bad_request(e.to_string()),
-            E::LengthMismatch { .. } => ApiError::conflict(format!(
-                "{e}; the surface was redefined after this measurement: upload it again"
-            )),
-            E::NonFinite { .. } | E::ZeroNormal { .. } => ApiError::unprocessable(e.to_string()),
-        }
-    }
-}
-
 const KNOWN: [&str; 5] = ["measurement", "nu", "nv", "cl", "tool_radius"];
 
 fn parse<T: std::str::FromStr>(

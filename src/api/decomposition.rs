@@ -34,19 +34,6 @@ pub fn routes() -> Router<AppState> {
         )
 }
 
-impl From<signal::Error> for ApiError {
-    fn from(e: signal::Error) -> Self {
-        use signal::Error as E;
-        match e {
-            E::NonFinite { .. }
-            | E::BadParam { .. }
-            | E::UnknownWavelet(_)
-            | E::GridMismatch { .. } => ApiError::bad_request(e.to_string()),
-            E::TooShort { .. } => ApiError::unprocessable(e.to_string()),
-        }
-    }
-}
-
 /// Body of `POST /v1/decompose`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -1,8 +1,11 @@
 //! `ApiError`: the only place that decides an HTTP status for an error, rendered as
-//! RFC 9457 `application/problem+json`.
+//! RFC 9457 `application/problem+json`. Every `From<core::Error>` (and the worker pool's
+//! and the codec's) lives here, beside the type, as in axum's error-handling example.
 
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
+
+use crate::{codec, compensation, gap, geometry, jobs, motion, nn, signal, step_error, volumetric};
 
 /// An error answered to an HTTP client. 4xx variants carry a sentence saying what to fix;
 /// `Internal` carries the cause for the log only (the body stays opaque).
@@ -195,6 +198,178 @@ impl std::fmt::Display for ApiError {
         match self {
             ApiError::Internal(cause) => write!(f, "500: {cause}"),
             other => write!(f, "{}: {}", other.status().as_u16(), other.detail()),
+        }
+    }
+}
+
+// ---------- every core error to a status (one file decides them all) ----------
+
+/// A full pool or one shutting down is 503 + Retry-After; a failed worker or an unrecorded
+/// job is a 500.
+impl From<jobs::Error> for ApiError {
+    fn from(e: jobs::Error) -> Self {
+        match e {
+            jobs::Error::Full { .. } | jobs::Error::ShuttingDown => {
+                ApiError::unavailable(e.to_string(), jobs::RETRY_AFTER_S)
+            }
+            jobs::Error::Worker(cause) => ApiError::Internal(cause),
+            jobs::Error::Store(err) => ApiError::Internal(format!("{err:#}")),
+        }
+    }
+}
+
+impl From<geometry::Error> for ApiError {
+    fn from(e: geometry::Error) -> Self {
+        use geometry::Error as G;
+        match e {
+            G::InSegment { index, source } => {
+                let inner: ApiError = (*source).into();
+                let detail = format!("segments[{index}]: {}", inner.detail());
+                if inner.status() == StatusCode::BAD_REQUEST {
+                    ApiError::bad_request(detail)
+                } else {
+                    ApiError::unprocessable(detail)
+                }
+            }
+            G::NonFinite { .. } | G::InvalidParameter { .. } | G::Shape { .. } => {
+                ApiError::bad_request(e.to_string())
+            }
+            G::TooFewPoints { .. }
+            | G::DuplicatePoints { .. }
+            | G::ZeroLengthStep
+            | G::InconsistentRadius { .. } => ApiError::unprocessable(e.to_string()),
+        }
+    }
+}
+
+impl From<nn::Error> for ApiError {
+    fn from(e: nn::Error) -> Self {
+        use nn::Error as N;
+        match e {
+            N::InvalidParameter { .. }
+            | N::TooFewLayers(_)
+            | N::EmptyLayer { .. }
+            | N::NonFinite { .. } => ApiError::bad_request(e.to_string()),
+            N::TooFewSamples { .. } | N::Diverged { .. } | N::Incompatible(_) | N::Shape { .. } => {
+                ApiError::unprocessable(e.to_string())
+            }
+            N::Format(_) => ApiError::internal(e),
+        }
+    }
+}
+
+impl From<gap::Error> for ApiError {
+    fn from(e: gap::Error) -> Self {
+        match e {
+            gap::Error::Servo { .. } => ApiError::unprocessable(format!(
+                "{e}. Fix the machine's servo model with PUT /v1/machines/{{machine}}"
+            )),
+            gap::Error::Shape { .. }
+            | gap::Error::NonFinite { .. }
+            | gap::Error::Invalid { .. }
+            | gap::Error::Request(_) => ApiError::bad_request(e.to_string()),
+            gap::Error::TooManySamples { .. } => ApiError::payload_too_large(e.to_string()),
+            gap::Error::MissingAxes { .. } => ApiError::unprocessable(e.to_string()),
+        }
+    }
+}
+
+impl From<compensation::Error> for ApiError {
+    fn from(e: compensation::Error) -> Self {
+        use compensation::Error as E;
+        match e {
+            E::BadSize { .. } | E::BadToolRadius => ApiError::bad_request(e.to_string()),
+            E::LengthMismatch { .. } => ApiError::conflict(format!(
+                "{e}; the surface was redefined after this measurement: upload it again"
+            )),
+            E::NonFinite { .. } | E::ZeroNormal { .. } => ApiError::unprocessable(e.to_string()),
+        }
+    }
+}
+
+/// G-code and machine problems are the caller's to fix (422 naming line/code or field);
+/// malformed numeric arguments are 400.
+impl From<motion::Error> for ApiError {
+    fn from(e: motion::Error) -> Self {
+        use motion::Error as E;
+        match e {
+            E::UnsupportedCode { line, code } => ApiError::unprocessable(format!(
+                "gcode line {line}: unsupported code {code}. Supported: G0 G1 G2 G3 G4 G17 G18 G19 \
+                 G20 G21 G40 G43.4 G49 G54 G80 G90 G91 G93 G94, TRAORI/TRAFOOF, M0-M9 M30, words \
+                 X Y Z A C I J K R F N S T H D P"
+            )),
+            E::Gcode { line, message } => {
+                ApiError::unprocessable(format!("gcode line {line}: {message}"))
+            }
+            E::TooManyPeriods { .. } | E::EmptyProgram => ApiError::unprocessable(e.to_string()),
+            E::InvalidServo { .. } | E::UnstableServo { .. } | E::InvalidMachine(_) => {
+                ApiError::unprocessable(format!("machine definition: {e}"))
+            }
+            E::NotSimulable { .. } | E::NotAServo { .. } | E::AxisServo { .. } => {
+                ApiError::unprocessable(e.to_string())
+            }
+            E::InvalidPeriod(_)
+            | E::PeriodOutOfRange(_)
+            | E::InvalidParameter { .. }
+            | E::EmptyCommand
+            | E::NonFiniteCommand { .. } => ApiError::bad_request(e.to_string()),
+        }
+    }
+}
+
+impl From<signal::Error> for ApiError {
+    fn from(e: signal::Error) -> Self {
+        use signal::Error as E;
+        match e {
+            E::NonFinite { .. }
+            | E::BadParam { .. }
+            | E::UnknownWavelet(_)
+            | E::GridMismatch { .. } => ApiError::bad_request(e.to_string()),
+            E::TooShort { .. } => ApiError::unprocessable(e.to_string()),
+        }
+    }
+}
+
+impl From<volumetric::Error> for ApiError {
+    fn from(e: volumetric::Error) -> Self {
+        use volumetric::Error as E;
+        match e {
+            E::Empty { .. }
+            | E::LengthMismatch { .. }
+            | E::NonFinite { .. }
+            | E::UnknownModel(_)
+            | E::InvalidOption { .. }
+            | E::Csv { .. }
+            | E::AxisLine { .. }
+            | E::TableTooLarge { .. } => ApiError::bad_request(e.to_string()),
+            E::TooFewNodes { .. } | E::FlatAxis { .. } | E::NotAGrid { .. } => {
+                ApiError::unprocessable(e.to_string())
+            }
+            E::Fit(_) => ApiError::unprocessable(format!(
+                "the map could not be fitted to these nodes ({e}); check them for outliers or try another model"
+            )),
+            E::ModelFormat(_) => ApiError::internal(e),
+        }
+    }
+}
+
+/// A body the segment decoder refuses is the caller's to fix: 400 with its sentence.
+impl From<codec::DecodeError> for ApiError {
+    fn from(e: codec::DecodeError) -> Self {
+        ApiError::BadRequest(e.0)
+    }
+}
+
+/// Labelling and training failures as their core's (geometry, nn); too few samples to split
+/// is 422; unreadable model metadata is the server's fault (500).
+impl From<step_error::Error> for ApiError {
+    fn from(e: step_error::Error) -> Self {
+        use step_error::Error as E;
+        match e {
+            E::Geometry(e) => e.into(),
+            E::Nn(e) => e.into(),
+            E::TooFewToSplit => ApiError::unprocessable(e.to_string()),
+            E::Metadata(_) => ApiError::internal(e),
         }
     }
 }

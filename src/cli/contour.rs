@@ -46,12 +46,21 @@ fn load_machine(args: &Args) -> anyhow::Result<(String, serde_json::Value)> {
             .with_context(|| format!("machine file {} is not valid JSON", path.display()))?;
         return Ok((args.machine.clone(), def));
     }
-    crate::api::check_id("machine", &args.machine).map_err(|e| {
-        anyhow::anyhow!(
-            "--machine '{}' is neither an existing JSON file nor a valid machine id: {e}",
+    // The service's id rule (api's check_id), so a typo is not looked up in the store.
+    let valid_id = !args.machine.is_empty()
+        && args.machine.len() <= 64
+        && args
+            .machine
+            .bytes()
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'));
+    if !valid_id {
+        let shown: String = args.machine.chars().take(80).collect();
+        bail!(
+            "--machine '{}' is neither an existing JSON file nor a valid machine id: machine id \
+             '{shown}' is invalid: use 1 to 64 characters from A-Z a-z 0-9 . _ -",
             args.machine
-        )
-    })?;
+        );
+    }
     if args.database_url.is_none() && !args.data_dir.is_dir() {
         bail!(
             "--machine '{}' is not a file, and the data dir {} does not exist: give a machine \
@@ -81,12 +90,11 @@ fn load_machine(args: &Args) -> anyhow::Result<(String, serde_json::Value)> {
 
 /// Runs the prediction and prints a summary (and writes `--output`).
 pub fn run(args: Args) -> anyhow::Result<()> {
-    crate::api::contour::check_period(args.period_s).map_err(|e| anyhow::anyhow!("{e}"))?;
+    crate::motion::check_period(args.period_s)?;
     let gcode = std::fs::read_to_string(&args.file)
         .with_context(|| format!("reading G-code file {}", args.file.display()))?;
     let (id, def) = load_machine(&args)?;
-    let machine = crate::api::contour::machine_for_simulation(&id, &def)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let machine = crate::motion::machine_for_simulation(&id, &def)?;
     let p = predict_contour_error(&machine, &gcode, args.period_s, args.max_periods)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
     let r = &p.report;
@@ -119,7 +127,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("tool orientation error: max {o:.4} deg");
     }
     if let Some(out) = &args.output {
-        let bytes = crate::api::contour::encode_answer(&machine, &p)?;
+        let bytes = crate::wire::contour::encode_answer(&machine, &p)?;
         std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
         println!("full answer written to {}", out.display());
     }

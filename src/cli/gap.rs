@@ -8,8 +8,8 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use serde_json::{Value, json};
 
-use crate::api::gap::{GapAxes, GapRequest, diagnose_motion_request, gap_axes};
-use crate::gap::{MotionOptions, selfcheck};
+use crate::gap::{GapRequest, MotionOptions, diagnose_motion_request, selfcheck};
+use crate::motion::{ServoAxes, servo_axes};
 
 /// Sim-to-real gap diagnosis: which unmodelled effect separates the servo simulation from
 /// measured positions, where, and how far the gap shrinks once it is added.
@@ -131,8 +131,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                     "truecut gap diagnose runs the motion domain; part diagnoses need the server's stored surfaces"
                 );
             }
-            let answer =
-                diagnose_motion_request(&m, &req).map_err(|e| anyhow::anyhow!("{}", e.detail()))?;
+            let answer = diagnose_motion_request(&m, &req)?;
             println!("{}", serde_json::to_string_pretty(&answer)?);
             Ok(())
         }
@@ -152,8 +151,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 "domain": "motion", "period_s": period_s,
                 "commanded": cmd_rows, "measured": meas_rows,
             }))?;
-            let answer =
-                diagnose_motion_request(&m, &req).map_err(|e| anyhow::anyhow!("{}", e.detail()))?;
+            let answer = diagnose_motion_request(&m, &req)?;
             if json {
                 println!("{}", serde_json::to_string_pretty(&answer)?);
             } else {
@@ -164,12 +162,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     }
 }
 
-fn read_machine(path: &PathBuf) -> anyhow::Result<GapAxes> {
+fn read_machine(path: &PathBuf) -> anyhow::Result<ServoAxes> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let def: Value =
         serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    gap_axes(&path.display().to_string(), &def).map_err(|e| anyhow::anyhow!("{}", e.detail()))
+    Ok(servo_axes(&path.display().to_string(), &def)?)
 }
 
 type Rows = Vec<Vec<f64>>;

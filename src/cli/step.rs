@@ -6,11 +6,11 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use serde::Deserialize;
 
-use crate::api::step_error::{TrainJob, model_features};
 use crate::geometry::{
     HeightSurface, PathPlan, StepErrorSegment, height_surface_segments, step_errors,
 };
 use crate::nn::{Init, Regressor, TrainConfig};
+use crate::step_error::{TrainJob, model_features};
 
 /// Step error of ball-end toolpaths: exact geometry, sample generation, the network.
 #[derive(Debug, clap::Args)]
@@ -191,9 +191,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if let Some(e) = epochs {
                 job.cfg.epochs = e;
             }
-            let (reg, report) = job
-                .run(&f.segments, &|p| eprint!("\rtraining {:>3.0} %", p * 100.0))
-                .map_err(|e| anyhow::anyhow!(e.detail().to_string()))?;
+            let (reg, report) =
+                job.run(&f.segments, &|p| eprint!("\rtraining {:>3.0} %", p * 100.0))?;
             eprintln!();
             std::fs::write(&output, reg.to_bytes())
                 .with_context(|| format!("cannot write {}", output.display()))?;
@@ -205,8 +204,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 &std::fs::read(&model)
                     .with_context(|| format!("cannot read {}", model.display()))?,
             )?;
-            let (features, r_model) =
-                model_features(&reg).map_err(|e| anyhow::anyhow!(e.detail().to_string()))?;
+            let (features, r_model) = model_features(&reg)?;
             let r = f.tool_radius.unwrap_or(r_model);
             let (x, convex) = features.matrix(r, f.segments.iter().map(|s| (s.cl, &s.cc[..])))?;
             let y = reg.predict_parallel(&x, 0)?;

@@ -39,6 +39,35 @@ pub enum Error {
         /// What to fix.
         reason: String,
     },
+    /// A diagnosis request is malformed (a missing field, a field of the other domain, rows
+    /// that do not pair up); the sentence names the field and the fix.
+    #[error("{0}")]
+    Request(String),
+    /// A block has more samples than a diagnosis accepts.
+    #[error("{field} has {rows} rows: at most {max} samples a block")]
+    TooManySamples {
+        /// JSON field name.
+        field: String,
+        /// Rows sent.
+        rows: usize,
+        /// Most rows accepted.
+        max: usize,
+    },
+    /// The machine has servo models for fewer axes than the rows have columns.
+    #[error(
+        "machine '{machine}' has servo models for [{}] but the rows have {dims} columns: \
+         PUT /v1/machines/{machine} with axes {}",
+        have.join(", "),
+        ["X", "Y", "Z"][..*dims].join(", ")
+    )]
+    MissingAxes {
+        /// Machine id.
+        machine: String,
+        /// The axes it has servo models for.
+        have: Vec<String>,
+        /// Columns of the rows.
+        dims: usize,
+    },
 }
 
 impl Error {

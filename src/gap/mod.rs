@@ -1,5 +1,6 @@
 //! Sim-to-real gap diagnosis: where simulation and measurement part, which unmodelled effect
 //! causes it, and how far the gap shrinks once that effect is added (motion and part domains).
+pub mod answer;
 pub mod effects;
 pub mod error;
 pub mod events;
@@ -9,9 +10,11 @@ pub mod part;
 pub mod part_selfcheck;
 pub mod plant;
 pub mod programs;
+pub mod request;
 pub mod selfcheck;
 pub mod truth;
 
+pub use answer::{motion_answer, part_answer};
 pub use effects::{Effect, Fitted};
 pub use error::Error;
 pub use events::Span;
@@ -20,3 +23,6 @@ pub use motion::{
     diagnose_motion_structured,
 };
 pub use part::{PartBlock, PartDiagnosis, PartEffect, PartGrid, diagnose_part};
+pub use request::{
+    GapRequest, MAX_SAMPLES, MotionInputs, diagnose_motion_request, motion_inputs, rows_to_columns,
+};

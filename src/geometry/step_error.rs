@@ -62,7 +62,7 @@ pub struct StepErrorSolver {
 }
 
 /// A segment as the batch entry point takes it: the two CL points and the CC points, mm.
-type SegmentRef<'a> = ([[f64; 3]; 2], &'a [[f64; 3]]);
+pub type SegmentRef<'a> = ([[f64; 3]; 2], &'a [[f64; 3]]);
 
 /// Segments solved side by side by [`StepErrorSolver::solve_batch`].
 const BATCH_LANES: usize = 4;
@@ -545,23 +545,44 @@ pub fn step_errors(
     segments: &[StepErrorSegment],
     threads: usize,
 ) -> Result<Vec<StepError>> {
-    let per = parallel::chunk_len(segments.len(), threads, 1024);
-    let run = |offset: usize, segs: &[StepErrorSegment]| -> Result<Vec<StepError>> {
+    let range = |a: usize, b: usize| segments[a..b].iter().map(|s| (s.cl, &s.cc[..]));
+    step_errors_split(tool_radius_mm, segments.len(), threads, 1024, range)
+}
+
+/// [`step_errors`] of `n` segments in any storage (`range(from, to)` yields `from..to`), the
+/// one thread split of the exact step error (also of `step_error::solve_batch`'s flat
+/// batches): up to `threads` threads (0 = all cores), each taking at least `min_per_thread`
+/// segments, the caller the first share. Units: mm. Errors: as [`step_errors`].
+pub fn step_errors_split<'a, I>(
+    tool_radius_mm: f64,
+    n: usize,
+    threads: usize,
+    min_per_thread: usize,
+    range: impl Fn(usize, usize) -> I + Sync,
+) -> Result<Vec<StepError>>
+where
+    I: Iterator<Item = SegmentRef<'a>>,
+{
+    let per = parallel::chunk_len(n, threads, min_per_thread).max(1);
+    let run = |from: usize| -> Result<Vec<StepError>> {
+        let segs = range(from, (from + per).min(n));
         StepErrorSolver::default()
-            .solve_batch(tool_radius_mm, segs.iter().map(|s| (s.cl, &s.cc[..])))
+            .solve_batch(tool_radius_mm, segs)
             .map_err(|e| match e {
                 Error::InSegment { index, source } => Error::InSegment {
-                    index: offset + index,
+                    index: from + index,
                     source,
                 },
                 e => e,
             })
     };
-    if segments.len() <= per {
-        return run(0, segments);
+    if n <= per {
+        return run(0);
     }
-    let parts = parallel::map_chunks(segments, per, run);
-    let mut out = Vec::with_capacity(segments.len());
+    // One scoped thread per share of `per` segments (numeric::parallel, the one split).
+    let starts: Vec<usize> = (0..n).step_by(per).collect();
+    let parts = parallel::map_chunks(&starts, 1, |_, from| run(from[0]));
+    let mut out = Vec::with_capacity(n);
     for p in parts {
         out.extend(p?);
     }

@@ -56,6 +56,43 @@ pub enum Error {
     /// The program contains no motion at all.
     #[error("the program contains no motion (no G0/G1/G2/G3 block moves an axis)")]
     EmptyProgram,
+    /// The interpolation period asked of a simulation is outside what it answers.
+    #[error(
+        "period_s must be a number of seconds between 0.00001 and 0.1 (default 0.001), got {0}"
+    )]
+    PeriodOutOfRange(f64),
+    /// A stored machine definition does not make a simulable machine.
+    #[error(
+        "machine '{machine}' cannot be simulated: {reason}. Fix it with PUT /v1/machines/{machine}"
+    )]
+    NotSimulable {
+        /// Machine id.
+        machine: String,
+        /// Why, as the machine model says it.
+        reason: String,
+    },
+    /// An axis of a stored machine definition is not a servo model at all.
+    #[error(
+        "machine '{machine}' axes.{axis} is not a servo model ({reason}): fix it with PUT /v1/machines/{machine}"
+    )]
+    NotAServo {
+        /// Machine id.
+        machine: String,
+        /// Axis letter.
+        axis: &'static str,
+        /// What the decoder refused.
+        reason: String,
+    },
+    /// An axis' servo model of a stored machine definition is out of range or unstable.
+    #[error("machine '{machine}' axes.{axis}: {source}. Fix it with PUT /v1/machines/{machine}")]
+    AxisServo {
+        /// Machine id.
+        machine: String,
+        /// Axis letter.
+        axis: &'static str,
+        /// The servo's own error.
+        source: Box<Error>,
+    },
 }
 
 impl Error {

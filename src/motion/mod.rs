@@ -1,6 +1,7 @@
 //! Motion core (seed 003): G-code reader, RTCP interpolation with a jerk-limited feed
 //! profile, machine kinematics, the servo cascade per axis (E's `servo`), physical drive
 //! parameters, and contour error.
+pub mod axes;
 pub mod contour;
 pub mod error;
 pub mod gcode;
@@ -14,6 +15,7 @@ pub mod program;
 pub mod rk4;
 pub mod servo;
 
+pub use axes::{ServoAxes, check_period, machine_for_simulation, servo_axes};
 pub use contour::{ContourReport, contour_error};
 pub use error::Error;
 pub use gcode::{Program, parse};

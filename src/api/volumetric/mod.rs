@@ -14,8 +14,6 @@ use axum::Router;
 use axum::routing::{get, post};
 
 use super::AppState;
-use super::error::ApiError;
-use crate::volumetric;
 use handlers::{delete_map, get_map, predict, put_map, table};
 
 pub use handlers::{MODEL_KIND, load_map};
@@ -33,27 +31,4 @@ pub fn routes() -> Router<AppState> {
             post(predict),
         )
         .route("/v1/machines/{machine}/volumetric-map/table", get(table))
-}
-
-impl From<volumetric::Error> for ApiError {
-    fn from(e: volumetric::Error) -> Self {
-        use volumetric::Error as E;
-        match e {
-            E::Empty { .. }
-            | E::LengthMismatch { .. }
-            | E::NonFinite { .. }
-            | E::UnknownModel(_)
-            | E::InvalidOption { .. }
-            | E::Csv { .. }
-            | E::AxisLine { .. }
-            | E::TableTooLarge { .. } => ApiError::bad_request(e.to_string()),
-            E::TooFewNodes { .. } | E::FlatAxis { .. } | E::NotAGrid { .. } => {
-                ApiError::unprocessable(e.to_string())
-            }
-            E::Fit(_) => ApiError::unprocessable(format!(
-                "the map could not be fitted to these nodes ({e}); check them for outliers or try another model"
-            )),
-            E::ModelFormat(_) => ApiError::internal(e),
-        }
-    }
 }

@@ -1,0 +1,324 @@
+//! The step-error network over HTTP: training / fine-tuning as a job
+//! (`POST .../step-error-model`), its description (`GET`), and prediction (`POST .../predict`).
+//! The recipe is the `step_error` core's ([`TrainJob`]); this file parses the request, loads
+//! and saves the model files through `store`.
+
+use axum::body::Bytes;
+use axum::extract::{Path, State};
+use axum::http::{HeaderMap, StatusCode};
+use axum::response::{IntoResponse, Response};
+use serde::{Deserialize, Serialize};
+use serde_json::{Value, json};
+
+use super::exact::{check_tool_radius, decode_segments, json_response};
+use super::samples::PlanWithOptionalRadius;
+use crate::api::AppState;
+use crate::api::auth::RequireAdmin;
+use crate::api::error::{ApiError, ApiResult};
+use crate::api::extract::{ApiJson, check_id};
+use crate::api::lookup::{require_machine, require_surface};
+use crate::geometry::{StepErrorSegment, StepFeatures, grid_segments};
+use crate::nn::{self, Init, Regressor, TrainConfig};
+use crate::step_error::{MODEL_KIND, ModelMeta, SegmentBatch, TrainJob};
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct BaseRef {
+    machine: String,
+    surface: String,
+}
+
+#[derive(Debug, Clone, Copy, Deserialize, Default, PartialEq, Eq)]
+#[serde(rename_all = "snake_case")]
+enum Preset {
+    /// He init, Adam 1e-3 with cosine decay, no dropout, early stopping (converges).
+    #[default]
+    Default,
+    /// The seed's settings: N(0,1) init, SGD lr 1e-5 momentum 0.8, dropout 0.5 (does not converge).
+    Paper,
+}
+
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub(super) struct TrainRequest {
+    #[serde(default)]
+    tool_radius: Option<f64>,
+    #[serde(default)]
+    segments: Option<Vec<StepErrorSegment>>,
+    /// Generate labelled samples from the stored nominal grid instead of sending segments.
+    #[serde(default)]
+    generate: Option<PlanWithOptionalRadius>,
+    #[serde(default)]
+    base: Option<BaseRef>,
+    #[serde(default)]
+    hidden: Option<Vec<usize>>,
+    #[serde(default)]
+    epochs: Option<usize>,
+    #[serde(default)]
+    preset: Option<Preset>,
+    #[serde(default)]
+    features: Option<StepFeatures>,
+    #[serde(default)]
+    learning_rate: Option<f64>,
+    #[serde(default)]
+    dropout: Option<f64>,
+    #[serde(default)]
+    batch_size: Option<usize>,
+    /// Part of the samples held out to report accuracy (the paper's 30 %).
+    #[serde(default)]
+    test_fraction: Option<f64>,
+    #[serde(default)]
+    seed: Option<u64>,
+}
+
+fn model_missing(machine: &str, surface: &str) -> ApiError {
+    ApiError::not_found(format!(
+        "no step-error model for machine '{machine}' surface '{surface}': train one with \
+         POST /v1/machines/{machine}/surfaces/{surface}/step-error-model"
+    ))
+}
+
+async fn load_model(
+    state: &AppState,
+    machine: &str,
+    surface: &str,
+) -> ApiResult<(Regressor, ModelMeta)> {
+    let bytes = state
+        .store
+        .models()
+        .load(machine, Some(surface), MODEL_KIND)
+        .await?
+        .ok_or_else(|| model_missing(machine, surface))?;
+    let reg = Regressor::from_bytes(&bytes).map_err(ApiError::internal)?;
+    let meta: ModelMeta = serde_json::from_str(&reg.metadata).map_err(ApiError::internal)?;
+    Ok((reg, meta))
+}
+
+pub(super) async fn train(
+    State(state): State<AppState>,
+    _admin: RequireAdmin,
+    Path((machine, surface)): Path<(String, String)>,
+    ApiJson(req): ApiJson<TrainRequest>,
+) -> ApiResult<impl IntoResponse> {
+    let stored = require_surface(&state, &machine, &surface).await?;
+    let base = match &req.base {
+        Some(b) => {
+            check_id("base.machine", &b.machine)?;
+            check_id("base.surface", &b.surface)?;
+            Some(load_model(&state, &b.machine, &b.surface).await.map_err(|e| {
+                if e.status() == StatusCode::NOT_FOUND {
+                    ApiError::not_found(format!(
+                        "base model of machine '{}' surface '{}' does not exist: train it first",
+                        b.machine, b.surface
+                    ))
+                } else {
+                    e
+                }
+            })?)
+        }
+        None => None,
+    };
+    // Samples: sent, or generated from the stored nominal grid.
+    let (r, segments) = match (req.segments, &req.generate) {
+        (Some(_), Some(_)) => {
+            return Err(ApiError::bad_request(
+                "send either segments or generate, not both",
+            ));
+        }
+        (Some(segs), None) => {
+            let r = req.tool_radius.or(stored.tool_radius).ok_or_else(|| {
+                ApiError::bad_request("tool_radius (mm) is required with segments")
+            })?;
+            check_tool_radius(r)?;
+            if segs.is_empty() {
+                return Err(ApiError::bad_request("segments is empty"));
+            }
+            (r, segs)
+        }
+        (None, Some(g)) => {
+            let plan = g.resolve(req.tool_radius.or(stored.tool_radius))?;
+            let segs = grid_segments(stored.nu, stored.nv, &stored.points, &stored.normals, &plan)?;
+            (plan.tool_radius_mm, segs)
+        }
+        (None, None) => {
+            return Err(ApiError::bad_request(
+                "send segments (with tool_radius) or generate: {\"step_over_mm\": .., \"cl_spacing_mm\": ..} to sample the stored surface",
+            ));
+        }
+    };
+    if segments.len() < 10 {
+        return Err(ApiError::unprocessable(format!(
+            "{} segments are too few to train on: send at least 10",
+            segments.len()
+        )));
+    }
+    let preset = req.preset.unwrap_or_default();
+    let (features, hidden) = match &base {
+        Some((reg, meta)) => {
+            if req.hidden.is_some() || req.features.is_some() {
+                return Err(ApiError::bad_request(
+                    "hidden and features come from the base model when fine-tuning: drop them",
+                ));
+            }
+            let sizes = reg.mlp().sizes();
+            (meta.features, sizes[1..sizes.len() - 1].to_vec())
+        }
+        None => {
+            let f = req.features.unwrap_or(StepFeatures {
+                two_sided: true,
+                ..StepFeatures::local()
+            });
+            f.validate()?;
+            let hidden = req.hidden.clone().unwrap_or_else(|| vec![28, 20]);
+            if hidden.is_empty() || hidden.len() > 8 || hidden.iter().any(|&h| h == 0 || h > 1024) {
+                return Err(ApiError::bad_request(
+                    "hidden must list 1 to 8 layer sizes, each 1..=1024 (default [28, 20])",
+                ));
+            }
+            (f, hidden)
+        }
+    };
+    let mut cfg = match preset {
+        Preset::Default => TrainConfig::default(),
+        Preset::Paper => TrainConfig::paper(),
+    };
+    if base.is_some() {
+        cfg.epochs = 100;
+        cfg.patience = Some(20);
+    }
+    if let Some(e) = req.epochs {
+        if !(1..=20_000).contains(&e) {
+            return Err(ApiError::bad_request(format!(
+                "epochs must be in 1..=20000, got {e}"
+            )));
+        }
+        cfg.epochs = e;
+    }
+    if let Some(lr) = req.learning_rate {
+        cfg.optimizer = match cfg.optimizer {
+            nn::Optimizer::Sgd { momentum, .. } => nn::Optimizer::Sgd { lr, momentum },
+            nn::Optimizer::Adam {
+                beta1, beta2, eps, ..
+            } => nn::Optimizer::Adam {
+                lr,
+                beta1,
+                beta2,
+                eps,
+            },
+        };
+    }
+    if let Some(d) = req.dropout {
+        cfg.dropout = d;
+    }
+    if let Some(b) = req.batch_size {
+        cfg.batch_size = b;
+    }
+    cfg.seed = req.seed.unwrap_or(0);
+    let test_fraction = req.test_fraction.unwrap_or(0.3);
+    if !(0.0..=0.9).contains(&test_fraction) {
+        return Err(ApiError::bad_request(format!(
+            "test_fraction must be in [0, 0.9] (default 0.3), got {test_fraction}"
+        )));
+    }
+    let init = if preset == Preset::Paper {
+        Init::StandardNormal
+    } else {
+        Init::He
+    };
+    let store = state.store.clone();
+    let handle = tokio::runtime::Handle::current();
+    let base_name = req
+        .base
+        .map(|b| json!({"machine": b.machine, "surface": b.surface}));
+    let id = state
+        .jobs
+        .submit("step_error_training", move |progress| {
+            let job = TrainJob {
+                r,
+                features,
+                hidden,
+                init,
+                cfg,
+                test_fraction,
+                base: base.map(|b| b.0),
+                base_name,
+            };
+            let (reg, result) = job
+                .run(&segments, &|p| progress.set(p))
+                .map_err(|e| ApiError::from(e).detail().to_string())?;
+            handle
+                .block_on(store.models().save(
+                    &machine,
+                    Some(&surface),
+                    MODEL_KIND,
+                    &reg.to_bytes(),
+                ))
+                .map_err(|e| format!("the model was trained but could not be saved: {e:#}"))?;
+            Ok(result)
+        })
+        .await?;
+    Ok((StatusCode::ACCEPTED, ApiJson(json!({"job": id}))))
+}
+
+pub(super) async fn model_info(
+    State(state): State<AppState>,
+    Path((machine, surface)): Path<(String, String)>,
+) -> ApiResult<ApiJson<Value>> {
+    require_surface(&state, &machine, &surface).await?;
+    let (reg, meta) = load_model(&state, &machine, &surface).await?;
+    Ok(ApiJson(json!({
+        "machine": machine,
+        "surface": surface,
+        "kind": MODEL_KIND,
+        "layers": reg.mlp().sizes(),
+        "features": meta.features,
+        "tool_radius_mm": meta.tool_radius_mm,
+        "output_unit": meta.output_unit,
+        "training": meta.report,
+    })))
+}
+
+#[derive(Serialize)]
+struct PredictAnswer<'a> {
+    step_errors: &'a [f64],
+    tool_radius: f64,
+    unit: &'static str,
+    model: &'static str,
+}
+
+pub(super) async fn predict(
+    State(state): State<AppState>,
+    Path((machine, surface)): Path<(String, String)>,
+    headers: HeaderMap,
+    body: Bytes,
+) -> ApiResult<Response> {
+    check_id("machine", &machine)?;
+    check_id("surface", &surface)?;
+    require_machine(&state, &machine).await?;
+    require_surface(&state, &machine, &surface).await?;
+    let (reg, meta) = load_model(&state, &machine, &surface).await?;
+    let out = state
+        .jobs
+        .run(move || -> ApiResult<Vec<u8>> {
+            let req = decode_segments(&headers, &body)?;
+            let r = req.tool_radius.unwrap_or(meta.tool_radius_mm);
+            let batch = SegmentBatch::concat(req.parts);
+            let f = meta.features;
+            let (x, convex) = f.matrix(r, batch.iter())?;
+            let y = reg.predict_parallel(&x, 0)?;
+            let e: Vec<f64> = f
+                .combine(&y, &convex)
+                .into_iter()
+                .map(|v| v / 1000.0)
+                .collect();
+            serde_json::to_vec(&PredictAnswer {
+                step_errors: &e,
+                tool_radius: r,
+                unit: "mm",
+                model: MODEL_KIND,
+            })
+            .map_err(ApiError::internal)
+        })
+        .await??;
+    Ok(json_response(out))
+}

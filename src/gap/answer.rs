@@ -1,0 +1,76 @@
+//! The CONTRACT answers of a gap diagnosis (motion and part) as JSON: gap before and after,
+//! where, the effects with their parameters and scores, the verdict, the validation.
+
+use serde_json::{Map, Value, json};
+
+use super::motion::MotionDiagnosis;
+use super::part::PartDiagnosis;
+
+fn params_json(params: &[(String, f64)]) -> Value {
+    Value::Object(
+        params
+            .iter()
+            .map(|(k, v)| (k.clone(), json!(v)))
+            .collect::<Map<_, _>>(),
+    )
+}
+
+fn columns_to_rows(cols: &[Vec<f64>]) -> Value {
+    let n = cols.first().map_or(0, Vec::len);
+    Value::Array(
+        (0..n)
+            .map(|i| Value::Array(cols.iter().map(|c| json!(c[i])).collect()))
+            .collect(),
+    )
+}
+
+/// The CONTRACT answer of a motion diagnosis (plus `domain`, `axes`, `noise_mm`).
+pub fn motion_answer(axes: &[String], d: &MotionDiagnosis) -> Value {
+    let mut out = json!({
+        "domain": "motion",
+        "axes": axes,
+        "gap_before": d.gap_before,
+        "where": d.spans,
+        "effects": d.effects.iter().map(|e| json!({
+            "effect": e.fitted.effect().name(),
+            "params": params_json(&e.params),
+            "score": e.score,
+        })).collect::<Vec<_>>(),
+        "verdict": d.verdict.name(),
+        "gap_after": d.gap_after,
+        "noise_mm": d.noise_mm,
+    });
+    if let Some(v) = &d.validation {
+        out["validation"] = json!({
+            "predicted_before": columns_to_rows(&v.predicted_before),
+            "predicted_after": columns_to_rows(&v.predicted_after),
+            "rms_before": v.rms_before,
+            "rms_after": v.rms_after,
+        });
+    }
+    out
+}
+
+/// The CONTRACT answer of a part diagnosis (plus `domain`, `predicted_source`).
+pub fn part_answer(d: &PartDiagnosis, predicted_source: &str) -> Value {
+    let mut out = json!({
+        "domain": "part",
+        "gap_before": d.gap_before,
+        "where": d.regions,
+        "effects": d.effects.iter().map(|e| json!({
+            "effect": e.effect.name(),
+            "params": params_json(&e.params),
+            "score": e.score,
+        })).collect::<Vec<_>>(),
+        "verdict": d.verdict.name(),
+        "gap_after": d.gap_after,
+        "predicted_source": predicted_source,
+    });
+    if let Some((before, after, rb, ra)) = &d.validation {
+        out["validation"] = json!({
+            "predicted_before": before, "predicted_after": after,
+            "rms_before": rb, "rms_after": ra,
+        });
+    }
+    out
+}

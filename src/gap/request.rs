@@ -1,0 +1,221 @@
+//! The motion-gap request: the body of `POST /v1/machines/{machine}/gap-diagnosis` (both
+//! domains; the part fields are read by `api`, which loads the stored surface), checked into a
+//! [`MotionBlock`] and run against a machine's servo axes. The server, `truecut gap diagnose`
+//! and `truecut gap csv` all come here. Errors name the field and the fix.
+
+use serde::Deserialize;
+use serde_json::Value;
+
+use super::answer::motion_answer;
+use super::error::Error;
+use super::motion::{MotionBlock, MotionOptions, diagnose_motion_structured};
+use crate::motion::ServoAxes;
+
+/// Samples per block accepted at all.
+pub const MAX_SAMPLES: usize = 2_000_000;
+
+/// Body of the route (both domains; fields of the other domain are rejected).
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GapRequest {
+    /// "motion" or "part".
+    pub domain: String,
+    /// Motion: sample period, s.
+    #[serde(default)]
+    pub period_s: Option<f64>,
+    /// Motion: command rows `[x, y]` or `[x, y, z]`, mm.
+    #[serde(default)]
+    pub commanded: Option<Vec<Vec<f64>>>,
+    /// Motion: measured rows, mm.
+    #[serde(default)]
+    pub measured: Option<Vec<Vec<f64>>>,
+    /// Part: surface id.
+    #[serde(default)]
+    pub surface: Option<String>,
+    /// Part: measurement id.
+    #[serde(default)]
+    pub measurement: Option<String>,
+    /// Part: simulated deviation per point, mm (default: volumetric map along the normals, else 0).
+    #[serde(default)]
+    pub predicted: Option<Vec<f64>>,
+    /// Part: cutting time per point, s.
+    #[serde(default)]
+    pub time: Option<Vec<f64>>,
+    /// Part: probe approach direction per point.
+    #[serde(default)]
+    pub approach: Option<Vec<[f64; 3]>>,
+    /// Validation block (shape depends on the domain).
+    #[serde(default)]
+    pub validation: Option<Value>,
+    /// Extension: cross-validation folds (default 5, 2..=10).
+    #[serde(default)]
+    pub folds: Option<usize>,
+}
+
+/// The motion domain's `validation` block.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct MotionValidationBody {
+    commanded: Vec<Vec<f64>>,
+    measured: Vec<Vec<f64>>,
+}
+
+/// Rows `[[x, y(, z)]; n]` → per-axis columns, checking shape, size and finiteness.
+pub fn rows_to_columns(field: &str, rows: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, Error> {
+    let Some(first) = rows.first() else {
+        return Err(Error::Request(format!(
+            "{field} is empty: send one row [x, y] or [x, y, z] (mm) per period"
+        )));
+    };
+    let dims = first.len();
+    if !(2..=3).contains(&dims) {
+        return Err(Error::Request(format!(
+            "{field}[0] has {dims} values: rows are [x, y] or [x, y, z] in mm"
+        )));
+    }
+    if rows.len() > MAX_SAMPLES {
+        return Err(Error::TooManySamples {
+            field: field.to_string(),
+            rows: rows.len(),
+            max: MAX_SAMPLES,
+        });
+    }
+    let mut cols = vec![Vec::with_capacity(rows.len()); dims];
+    for (i, row) in rows.iter().enumerate() {
+        if row.len() != dims {
+            return Err(Error::Request(format!(
+                "{field}[{i}] has {} values but {field}[0] has {dims}: every row needs the same axes",
+                row.len()
+            )));
+        }
+        for (k, v) in row.iter().enumerate() {
+            if !v.is_finite() {
+                return Err(Error::NonFinite {
+                    field: format!("{field}[{i}]"),
+                    index: k,
+                });
+            }
+            cols[k].push(*v);
+        }
+    }
+    Ok(cols)
+}
+
+/// Runs the motion diagnosis of `req` against the machine's servo models (sync core call;
+/// also used by `truecut gap diagnose` and `truecut gap csv`).
+pub fn diagnose_motion_request(axes: &ServoAxes, req: &GapRequest) -> Result<Value, Error> {
+    let (main, validation, period_s, opts) = motion_inputs(axes, req)?;
+    let dims = main.commanded.len();
+    let d = diagnose_motion_structured(
+        &axes.names[..dims],
+        &axes.servo[..dims],
+        &axes.structure[..dims],
+        period_s,
+        &main,
+        validation.as_ref(),
+        &opts,
+    )?;
+    Ok(motion_answer(&axes.names[..dims], &d))
+}
+
+/// A motion request checked: the block, the validation block, the period (s), the options.
+pub type MotionInputs = (MotionBlock, Option<MotionBlock>, f64, MotionOptions);
+
+pub fn motion_inputs(axes: &ServoAxes, req: &GapRequest) -> Result<MotionInputs, Error> {
+    for (name, present) in [
+        ("surface", req.surface.is_some()),
+        ("measurement", req.measurement.is_some()),
+        ("predicted", req.predicted.is_some()),
+        ("time", req.time.is_some()),
+        ("approach", req.approach.is_some()),
+    ] {
+        if present {
+            return Err(Error::Request(format!(
+                "{name} belongs to domain \"part\": a motion diagnosis takes period_s, commanded, measured and validation"
+            )));
+        }
+    }
+    let period_s = req.period_s.ok_or_else(|| {
+        Error::Request("period_s is missing: give the sample period in seconds, e.g. 0.001".into())
+    })?;
+    if !(period_s.is_finite() && period_s > 0.0 && period_s <= 10.0) {
+        return Err(Error::Request(format!(
+            "period_s must be a positive number of seconds (at most 10), got {period_s}"
+        )));
+    }
+    let need = |field: &str, v: &Option<Vec<Vec<f64>>>| -> Result<Vec<Vec<f64>>, Error> {
+        rows_to_columns(
+            field,
+            v.as_deref().ok_or_else(|| {
+                Error::Request(format!(
+                    "{field} is missing: send rows [x, y] or [x, y, z] in mm"
+                ))
+            })?,
+        )
+    };
+    let commanded = need("commanded", &req.commanded)?;
+    let measured = need("measured", &req.measured)?;
+    let dims = commanded.len();
+    if measured.len() != dims {
+        return Err(Error::Request(format!(
+            "measured rows have {} values but commanded rows have {dims}",
+            measured.len()
+        )));
+    }
+    if measured[0].len() != commanded[0].len() {
+        return Err(Error::Request(format!(
+            "measured has {} rows but commanded has {}: one measured row per commanded row",
+            measured[0].len(),
+            commanded[0].len()
+        )));
+    }
+    if axes.names.len() < dims {
+        return Err(Error::MissingAxes {
+            machine: axes.machine.clone(),
+            have: axes.names.clone(),
+            dims,
+        });
+    }
+    let validation = match &req.validation {
+        None | Some(Value::Null) => None,
+        Some(v) => {
+            let body: MotionValidationBody = serde_json::from_value(v.clone()).map_err(|e| {
+                Error::Request(format!(
+                    "validation must be {{\"commanded\": [...], \"measured\": [...]}}: {e}"
+                ))
+            })?;
+            let c = rows_to_columns("validation.commanded", &body.commanded)?;
+            let m = rows_to_columns("validation.measured", &body.measured)?;
+            if c.len() != dims || m.len() != dims || c[0].len() != m[0].len() {
+                return Err(Error::Request(format!(
+                    "validation.commanded and validation.measured need {dims}-value rows and the same number of rows"
+                )));
+            }
+            Some(MotionBlock {
+                commanded: c,
+                measured: m,
+            })
+        }
+    };
+    let folds = req.folds.unwrap_or(5);
+    if !(2..=10).contains(&folds) {
+        return Err(Error::Request(format!("folds must be 2..=10, got {folds}")));
+    }
+    // small blocks: one thread per request (the pool runs requests side by side); large
+    // blocks: the 7 effect fits on 2 threads, so one 100,000-sample request stays near 5 s
+    let threads = if commanded[0].len() >= 20_000 { 2 } else { 1 };
+    let opts = MotionOptions {
+        folds,
+        threads,
+        ..MotionOptions::default()
+    };
+    Ok((
+        MotionBlock {
+            commanded,
+            measured,
+        },
+        validation,
+        period_s,
+        opts,
+    ))
+}

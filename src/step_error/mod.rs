@@ -1,0 +1,18 @@
+//! Step error of ball-end finishing as a capability: flat segment batches solved exactly on
+//! all cores, and the network that predicts the step error (training, fine-tuning, the model
+//! file's metadata). Uses the `geometry` core (the exact route, features) and `nn` (the
+//! network); knows nothing of HTTP, so the server, the CLI and the benchmarks call it alike.
+//! Reference: seed 000 eq. (1), as `geometry::step_error`.
+
+mod batch;
+mod error;
+mod model;
+mod train;
+
+#[cfg(test)]
+mod tests;
+
+pub use batch::{SegmentBatch, SegmentsBody, solve_batch};
+pub use error::{Error, Result};
+pub use model::{MODEL_KIND, ModelMeta, model_features};
+pub use train::TrainJob;

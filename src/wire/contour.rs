@@ -1,0 +1,106 @@
+//! The answer of `POST /v1/machines/{machine}/contour-error`, as the server sends it and
+//! `truecut contour --output` writes it: CONTRACT fields first, then extensions. Rows are
+//! serialized straight from the prediction's columns (no copies: a million periods a body).
+
+use serde::Serialize;
+use serde::ser::{SerializeSeq, Serializer};
+
+use crate::motion::{ContourPrediction, Machine};
+
+/// Columns (one `Vec` per axis) written as rows `[[x, y, z, ...], ...]` without copying.
+struct Rows<'a>(&'a [Vec<f64>]);
+
+struct Row<'a>(&'a [Vec<f64>], usize);
+
+impl Serialize for Row<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut seq = s.serialize_seq(Some(self.0.len()))?;
+        for col in self.0 {
+            seq.serialize_element(&col[self.1])?;
+        }
+        seq.end()
+    }
+}
+
+impl Serialize for Rows<'_> {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let n = self.0.first().map_or(0, Vec::len);
+        let mut seq = s.serialize_seq(Some(n))?;
+        for i in 0..n {
+            seq.serialize_element(&Row(self.0, i))?;
+        }
+        seq.end()
+    }
+}
+
+#[derive(Serialize)]
+struct Worst {
+    index: usize,
+    t: f64,
+    line: u32,
+    contour_error: f64,
+}
+
+#[derive(Serialize)]
+struct Tracking<'a> {
+    max: &'a [f64],
+    rms: &'a [f64],
+}
+
+/// The answer: CONTRACT fields first, then extensions (axis names, period, source line per
+/// sample, worst sample, per-axis tracking error, 5-axis orientation error).
+#[derive(Serialize)]
+struct Answer<'a> {
+    t: &'a [f64],
+    commanded: Rows<'a>,
+    actual: Rows<'a>,
+    contour_error: &'a [f64],
+    max: f64,
+    rms: f64,
+    axes: Vec<&'static str>,
+    period_s: f64,
+    duration_s: f64,
+    line: &'a [u32],
+    worst: Worst,
+    tracking_error: Tracking<'a>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    orientation_error_deg: Option<&'a [f64]>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    orientation_max_deg: Option<f64>,
+}
+
+/// Encodes a prediction of machine `m` as the route's JSON answer.
+pub fn encode_answer(m: &Machine, p: &ContourPrediction) -> serde_json::Result<Vec<u8>> {
+    let ce = &p.report.contour_error;
+    let index = ce
+        .iter()
+        .enumerate()
+        .fold(0, |b, (i, v)| if *v > ce[b] { i } else { b });
+    let answer = Answer {
+        t: &p.commanded.t,
+        commanded: Rows(&p.commanded.axes),
+        actual: Rows(&p.actual),
+        contour_error: ce,
+        max: p.report.max,
+        rms: p.report.rms,
+        axes: m.axes.iter().map(|a| a.name).collect(),
+        period_s: p.commanded.period_s,
+        duration_s: p.commanded.t.last().copied().unwrap_or(0.0),
+        line: &p.commanded.line,
+        worst: Worst {
+            index,
+            t: p.commanded.t.get(index).copied().unwrap_or(0.0),
+            line: p.commanded.line.get(index).copied().unwrap_or(0),
+            contour_error: ce.get(index).copied().unwrap_or(0.0),
+        },
+        tracking_error: Tracking {
+            max: &p.report.tracking_max,
+            rms: &p.report.tracking_rms,
+        },
+        orientation_error_deg: p.report.orientation_error_deg.as_deref(),
+        orientation_max_deg: p.report.orientation_max_deg,
+    };
+    let mut out = Vec::with_capacity(ce.len() * 120);
+    serde_json::to_writer(&mut out, &answer)?;
+    Ok(out)
+}
