@@ -6,6 +6,9 @@
 //!
 //! # Layout
 //!
+//! The shape, the invariants and the dependency rules are in `ARCHITECTURE.md` at the
+//! repository root (checked by `tests/tidy.rs`); citations resolve in `docs/REFERENCES.md`.
+//!
 //! - [`api`]: HTTP translation: router, one file per resource, problem+json errors, auth, extractors.
 //! - [`store`]: the only user of sqlx and `std::fs`: records (SQLite or PostgreSQL) and model files.
 //! - [`jobs`]: bounded worker pool for CPU-heavy work off the async runtime, with progress and back-pressure.
