@@ -131,7 +131,8 @@ fn run(name: &str, five: bool, text: &str) {
         (prog, traj)
     });
     let (w_servo, c_servo, actual) = timed(|| simulate_machine(&m, &traj).expect("servo"));
-    let (w_con, c_con, rep) = timed(|| contour_error(&m.kinematics, &traj.axes, &actual));
+    let (w_con, c_con, rep) =
+        timed(|| contour_error(&m.kinematics, &traj.axes, &actual, &traj.corners));
     let (wall, cpu) = (w_int + w_servo + w_con, c_int + c_servo + c_con);
     let machine_s = *traj.t.last().unwrap();
     let n = traj.t.len();

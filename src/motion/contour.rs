@@ -1,17 +1,26 @@
 //! Contour error: distance from the simulated tool tip to the commanded path.
 //!
-//! Seed 003 §4.2: the commanded samples are joined into a continuous path by cubic-spline
+//! Zhang & Chen 2025 §4.2: the commanded samples are joined into a continuous path by cubic-spline
 //! interpolation (here a natural cubic spline through the distinct commanded tool-tip
 //! points, chord-length parameterized), and each actual point is matched to the nearest
 //! point of that path inside a window around its own command sample whose size follows
-//! the tracking error (eq. 11 takes the minimum distance inside the window). The window is
-//! every path segment within arc length `2·|tracking error|` of the command sample, which
-//! contains the nearest point of the locally traversed path (the foot point is within
-//! `|e|` of the actual point, hence within `2|e|` of the command sample); passes of the path
-//! that come close again later are deliberately not matched.
+//! the tracking error (eq. 11 takes the minimum distance inside the window). The foot point
+//! is within `|e|` of the actual point, hence within `2|e|` of the command sample in space;
+//! on a smooth path that is within about `2|e|` of arc, but across a corner the arc is
+//! longer (√2 times at 90°), so the window is every segment within arc length `8|e|` of the
+//! command sample, and further while segments still come within `2|e|` in space. Passes of
+//! the path that come close again later are deliberately not matched.
+//!
+//! Corners: the programmed path turns at block junctions that the samples straddle (the
+//! junction speed is not zero), so the interpolator reports each corner point
+//! ([`super::interpolate::Corner`]); it becomes a knot at which the spline restarts (natural
+//! ends), so the path keeps its corner instead of a spline or chord rounding it off. With
+//! both, the contour error at corners equals the distance to the programmed path to 0.1 µm
+//! (`contour_error_at_corners_is_the_distance_to_the_programmed_path`).
 //!
 //! Hand-written spline (no crate): a tridiagonal solve and a per-segment Newton projection.
 
+use super::interpolate::Corner;
 use super::kinematics::{Kinematics, angle_between_deg};
 use crate::numeric::tridiag::Tridiagonal;
 use crate::numeric::vec3::{dist, dot};
@@ -46,22 +55,32 @@ struct PathSpline {
 }
 
 impl PathSpline {
-    fn new(pts: Vec<[f64; 3]>) -> Self {
+    /// The spline through `pts`, natural (zero second derivative) at both ends and at every
+    /// knot where `breaks` is true: the path's corners, where the programmed path turns and
+    /// a spline through it would round the corner off.
+    fn new(pts: Vec<[f64; 3]>, breaks: &[bool]) -> Self {
         let n = pts.len();
         let h: Vec<f64> = pts.windows(2).map(|w| dist(w[0], w[1])).collect();
         let mut m2 = vec![[0.0; 3]; n];
-        if n >= 3 {
-            // Interior knots 1..n-1 (natural ends: M0 = Mn-1 = 0).
-            let mut tri = Tridiagonal::new();
-            for i in 1..n - 1 {
-                tri.push_row(h[i - 1], 2.0 * (h[i - 1] + h[i]), h[i]);
-                for d in 0..3 {
-                    m2[i][d] = 6.0
-                        * ((pts[i + 1][d] - pts[i][d]) / h[i]
-                            - (pts[i][d] - pts[i - 1][d]) / h[i - 1]);
-                }
+        let mut start = 0;
+        for end in 1..n {
+            if end < n - 1 && !breaks[end] {
+                continue;
             }
-            tri.solve_in_place(&mut m2[1..n - 1]);
+            // One piece: knots start..=end, interior start+1..end (natural at both ends).
+            if end - start >= 2 {
+                let mut tri = Tridiagonal::new();
+                for i in start + 1..end {
+                    tri.push_row(h[i - 1], 2.0 * (h[i - 1] + h[i]), h[i]);
+                    for d in 0..3 {
+                        m2[i][d] = 6.0
+                            * ((pts[i + 1][d] - pts[i][d]) / h[i]
+                                - (pts[i][d] - pts[i - 1][d]) / h[i - 1]);
+                    }
+                }
+                tri.solve_in_place(&mut m2[start + 1..end]);
+            }
+            start = end;
         }
         PathSpline { pts, m2, h }
     }
@@ -152,6 +171,9 @@ fn gallop_forward(cum: &[f64], j: usize, target: f64) -> usize {
     }
 }
 
+/// Arc-length reach of the search window in units of its spatial radius (see the module doc).
+const CORNER_REACH: f64 = 4.0;
+
 /// Most segments searched on either side of a command sample (guards pathological inputs).
 const MAX_WINDOW: usize = 200_000;
 
@@ -165,6 +187,7 @@ pub fn contour_error(
     kin: &Kinematics,
     commanded: &[Vec<f64>],
     actual: &[Vec<f64>],
+    corners: &[Corner],
 ) -> ContourReport {
     let n_axes = commanded.len();
     let n = commanded.first().map_or(0, Vec::len);
@@ -182,7 +205,29 @@ pub fn contour_error(
     let mut first: Vec<usize> = Vec::new();
     let mut last: Vec<usize> = Vec::new();
     let mut knot_of = Vec::with_capacity(n);
+    let mut breaks: Vec<bool> = Vec::new();
+    let mut next_corner = corners.iter().peekable();
     for (i, p) in cmd_pose.iter().enumerate() {
+        // The path's corners (programmed junction points) go in as knots of their own, at
+        // which the spline restarts.
+        while let Some(c) = next_corner.next_if(|c| c.before_sample <= i) {
+            let mut q = [0.0; 5];
+            for (k, v) in c.axes.iter().enumerate().take(5) {
+                q[k] = *v;
+            }
+            let tip = kin.forward(&q).tip;
+            match knots.last() {
+                Some(k) if dist(*k, tip) <= 1e-9 => {
+                    *breaks.last_mut().unwrap() = true;
+                }
+                _ => {
+                    knots.push(tip);
+                    first.push(i);
+                    last.push(i);
+                    breaks.push(true);
+                }
+            }
+        }
         match knots.last() {
             Some(k) if dist(*k, p.tip) <= 1e-9 => {
                 *last.last_mut().unwrap() = i;
@@ -191,11 +236,12 @@ pub fn contour_error(
                 knots.push(p.tip);
                 first.push(i);
                 last.push(i);
+                breaks.push(false);
             }
         }
         knot_of.push(knots.len() - 1);
     }
-    let spline = PathSpline::new(knots);
+    let spline = PathSpline::new(knots, &breaks);
     let nseg = spline.h.len();
     let mut cum = Vec::with_capacity(nseg + 1);
     cum.push(0.0);
@@ -238,10 +284,16 @@ pub fn contour_error(
         // Walk the chords backward then forward from the command knot, within arc length
         // `radius`. Lower bound: a path point at arc distance ℓ from knot P has distance
         // ≥ |a − P| − ℓ, so arc lengths shorter than |a − P| − best are skipped unexamined.
-        let lo_arc = cum[kc] - radius;
+        // Across a corner the foot (always within `radius` of the command knot in space) can
+        // be farther along the path than in space: √2 times at a 90° turn, 1/sin(θ/2) at an
+        // inner angle θ. The window therefore spans CORNER_REACH·radius of arc (inner angles
+        // down to 29°), and runs on while a segment still comes within `radius` in space.
+        let pc = spline.pts[kc];
+        let near = |j: usize| chord_distance(&spline.pts[j], &spline.pts[j + 1], &pc).0 <= radius;
+        let lo_arc = cum[kc] - CORNER_REACH * radius;
         let mut j = kc;
         let mut steps = 0;
-        while j > 0 && cum[j] >= lo_arc && steps < MAX_WINDOW {
+        while j > 0 && (cum[j] >= lo_arc || near(j - 1)) && steps < MAX_WINDOW {
             steps += 1;
             let slack = dist(spline.pts[j], *a) - best.0;
             if slack > spline.h[j - 1] {
@@ -252,10 +304,10 @@ pub fn contour_error(
             consider(j - 1, &mut best);
             j -= 1;
         }
-        let hi_arc = cum[kc] + radius;
+        let hi_arc = cum[kc] + CORNER_REACH * radius;
         let mut j = kc;
         steps = 0;
-        while j < nseg && cum[j] <= hi_arc && steps < MAX_WINDOW {
+        while j < nseg && (cum[j] <= hi_arc || near(j)) && steps < MAX_WINDOW {
             steps += 1;
             let slack = dist(spline.pts[j], *a) - best.0;
             if slack > spline.h[j] {
@@ -354,7 +406,7 @@ mod tests {
                 [r * th.cos(), r * th.sin(), 0.0]
             })
             .collect();
-        let s = PathSpline::new(pts);
+        let s = PathSpline::new(pts, &[false; 201]);
         for j in 20..180 {
             let (p, _, _) = s.eval(j, s.h[j] * 0.5);
             let rad = (p[0] * p[0] + p[1] * p[1]).sqrt();
@@ -377,7 +429,7 @@ mod tests {
             vec![0.01; n],
             vec![0.0; n],
         ];
-        let rep = contour_error(&Kinematics::Xyz, &cmd, &act);
+        let rep = contour_error(&Kinematics::Xyz, &cmd, &act, &[]);
         for (i, e) in rep.contour_error.iter().enumerate() {
             assert!((e - 0.01).abs() < 1e-12, "{i}: {e}");
         }
@@ -402,9 +454,9 @@ mod tests {
         };
         let cmd = vec![x.clone(), y.clone(), z.clone()];
         let act = vec![lag(&x, 0.0), lag(&y, 0.03), lag(&z, 0.01)];
-        let rep = contour_error(&Kinematics::Xyz, &cmd, &act);
+        let rep = contour_error(&Kinematics::Xyz, &cmd, &act, &[]);
         let pts: Vec<[f64; 3]> = (0..n).map(|i| [x[i], y[i], z[i]]).collect();
-        let spline = PathSpline::new(pts.clone());
+        let spline = PathSpline::new(pts.clone(), &vec![false; n]);
         for i in (0..n).step_by(7) {
             let a = [act[0][i], act[1][i], act[2][i]];
             let brute = (0..n - 1)

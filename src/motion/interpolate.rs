@@ -36,6 +36,35 @@ pub struct Trajectory {
     pub axes: Vec<Vec<f64>>,
     /// 1-based source line of the block being executed at each sample.
     pub line: Vec<u32>,
+    /// The corners of the commanded path: block junctions where the tool-tip direction
+    /// turns (tangent junctions are not listed). The samples straddle a corner at the
+    /// junction speed, so the corner point itself is rarely a sample; the contour error
+    /// needs it to measure against the programmed path rather than a chord across it.
+    pub corners: Vec<Corner>,
+}
+
+/// A corner of the commanded path (see [`Trajectory::corners`]).
+#[derive(Clone, Debug, PartialEq)]
+pub struct Corner {
+    /// Index of the first sample taken at or after the junction time.
+    pub before_sample: usize,
+    /// Machine-axis position at the junction, X, Y, Z[, A, C] (mm, degrees).
+    pub axes: Vec<f64>,
+}
+
+/// Smallest turn of the path direction at a block junction that is treated as a corner,
+/// rad (0.05°): below it the junction is tangent for the contour-error spline.
+const CORNER_RAD: f64 = 1e-3;
+
+/// Angle (rad) between two direction vectors, 0 when either is zero.
+fn turn_angle(a: &[f64; 5], b: &[f64; 5]) -> f64 {
+    let dot: f64 = a.iter().zip(b).map(|(x, y)| x * y).sum();
+    let na = a.iter().map(|x| x * x).sum::<f64>().sqrt();
+    let nb = b.iter().map(|x| x * x).sum::<f64>().sqrt();
+    if na == 0.0 || nb == 0.0 {
+        return 0.0;
+    }
+    (dot / (na * nb)).clamp(-1.0, 1.0).acos()
 }
 
 /// Default interpolation period (1 ms), s.
@@ -297,6 +326,22 @@ pub fn interpolate(
     let mut out_t = Vec::with_capacity(count);
     let mut axes = vec![Vec::with_capacity(count); n_axes];
     let mut lines = Vec::with_capacity(count);
+    // Corner junctions: between consecutive moves (a dwell between them is a stop, whose
+    // junction is a corner as well when the direction turns).
+    let mut corner_at: Vec<Option<Vec<f64>>> = vec![None; n];
+    let mut prev: Option<&Seg> = None;
+    for (k, (b, s)) in items.iter().enumerate() {
+        if let Some(s) = s {
+            if let Some(a) = prev
+                && turn_angle(&a.d_out, &s.d_in) > CORNER_RAD
+            {
+                corner_at[k] = Some(axes_at(kin, b, 0.0)[..n_axes].to_vec());
+            }
+            prev = Some(s);
+        }
+    }
+    let mut corners = Vec::new();
+    let mut last_block = usize::MAX;
     let mut p = 0usize;
     for k in 0..count {
         let tk = k as f64 * period_s;
@@ -309,6 +354,23 @@ pub fn interpolate(
             Some(s) if tk < total => piece.s_at(tk) / s.len,
             _ => 1.0,
         };
+        if piece.block != last_block {
+            // Every block from the last one sampled up to this one starts before sample k.
+            let from = if last_block == usize::MAX {
+                0
+            } else {
+                last_block + 1
+            };
+            for c in corner_at.iter_mut().take(piece.block + 1).skip(from) {
+                if let Some(axes) = c.take() {
+                    corners.push(Corner {
+                        before_sample: k,
+                        axes,
+                    });
+                }
+            }
+            last_block = piece.block;
+        }
         let q = axes_at(kin, b, u);
         for (i, col) in axes.iter_mut().enumerate() {
             col.push(q[i]);
@@ -321,6 +383,7 @@ pub fn interpolate(
         t: out_t,
         axes,
         line: lines,
+        corners,
     })
 }
 

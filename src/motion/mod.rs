@@ -19,7 +19,7 @@ pub use axes::{ServoAxes, check_period, machine_for_simulation, servo_axes};
 pub use contour::{ContourReport, contour_error};
 pub use error::Error;
 pub use gcode::{Program, parse};
-pub use interpolate::{DEFAULT_PERIOD_S, Trajectory, interpolate};
+pub use interpolate::{Corner, DEFAULT_PERIOD_S, Trajectory, interpolate};
 pub use kinematics::{Kinematics, TableGeometry, ToolPose};
 pub use machine::{AxisLimits, Machine, MachineAxis};
 pub use physical::{PhysicalAxis, StructuralMode};

@@ -50,7 +50,12 @@ pub fn predict_contour_error(
     let program = gcode::parse(gcode_text)?;
     let commanded = interpolate(&program, machine, period_s, max_periods)?;
     let actual = simulate_machine(machine, &commanded)?;
-    let report = contour_error(&machine.kinematics, &commanded.axes, &actual);
+    let report = contour_error(
+        &machine.kinematics,
+        &commanded.axes,
+        &actual,
+        &commanded.corners,
+    );
     Ok(ContourPrediction {
         commanded,
         actual,
@@ -339,6 +344,109 @@ mod tests {
                 proptest::prop_assert!(p.actual.iter().all(|c| c.len() == n));
                 proptest::prop_assert!(p.report.contour_error.iter().all(|v| v.is_finite()));
                 proptest::prop_assert!(p.report.max.is_finite() && p.report.rms.is_finite());
+            }
+        }
+    }
+
+    /// One piece of a programmed XY path: a line or a circular arc (centre, radius, start
+    /// angle, signed sweep in rad).
+    enum Piece {
+        Line([f64; 2], [f64; 2]),
+        Arc([f64; 2], f64, f64, f64),
+    }
+
+    /// Distance (mm) from `p` to the programmed path, by brute force over its pieces.
+    fn reference_distance_to_path(path: &[Piece], p: [f64; 2]) -> f64 {
+        let d = |a: [f64; 2], b: [f64; 2]| (a[0] - b[0]).hypot(a[1] - b[1]);
+        path.iter()
+            .map(|piece| match *piece {
+                Piece::Line(a, b) => {
+                    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+                    let t = (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / (dx * dx + dy * dy))
+                        .clamp(0.0, 1.0);
+                    d(p, [a[0] + t * dx, a[1] + t * dy])
+                }
+                Piece::Arc(c, r, start, sweep) => {
+                    let at = |th: f64| [c[0] + r * th.cos(), c[1] + r * th.sin()];
+                    let th = (p[1] - c[1]).atan2(p[0] - c[0]);
+                    // Is th inside the swept range (either sense)?
+                    let tau = std::f64::consts::TAU;
+                    let rel = (th - start).rem_euclid(tau);
+                    let inside = if sweep >= 0.0 {
+                        rel <= sweep
+                    } else {
+                        rel == 0.0 || tau - rel <= -sweep
+                    };
+                    let ends = d(p, at(start)).min(d(p, at(start + sweep)));
+                    if inside {
+                        (d(p, c) - r).abs().min(ends)
+                    } else {
+                        ends
+                    }
+                }
+            })
+            .fold(f64::INFINITY, f64::min)
+    }
+
+    /// Precision issue part 4: at a corner (a rapid turning into an arc, a line into a line
+    /// at 90°) the contour error is the distance to the whole programmed path near the
+    /// sample, across the block boundary, to 0.1 µm.
+    #[test]
+    fn contour_error_at_corners_is_the_distance_to_the_programmed_path() {
+        let pi = std::f64::consts::PI;
+        let cases: Vec<(&str, String, Vec<Piece>)> = vec![
+            (
+                "G0 -> G3, 90 deg",
+                "G0 X10 Y0\nG3 X0 Y10 I-10 J0 F3000\n".into(),
+                vec![
+                    Piece::Line([0.0, 0.0], [10.0, 0.0]),
+                    Piece::Arc([0.0, 0.0], 10.0, 0.0, pi / 2.0),
+                ],
+            ),
+            (
+                "G0 -> G2, 90 deg",
+                "G0 X10 Y0\nG2 X20 Y0 I5 J0 F3000\n".into(),
+                vec![
+                    Piece::Line([0.0, 0.0], [10.0, 0.0]),
+                    Piece::Arc([15.0, 0.0], 5.0, pi, -pi),
+                ],
+            ),
+            (
+                "G1 -> G1, 90 deg",
+                "G1 X10 Y0 F3000\nG1 X10 Y10\n".into(),
+                vec![
+                    Piece::Line([0.0, 0.0], [10.0, 0.0]),
+                    Piece::Line([10.0, 0.0], [10.0, 10.0]),
+                ],
+            ),
+            (
+                "G1 -> G1, 135 deg turn",
+                "G1 X10 Y0 F6000\nG1 X0 Y10\n".into(),
+                vec![
+                    Piece::Line([0.0, 0.0], [10.0, 0.0]),
+                    Piece::Line([10.0, 0.0], [0.0, 10.0]),
+                ],
+            ),
+        ];
+        for (kv, kff) in [(30.0, 0.0), (60.0, 0.5)] {
+            let m = xyz_machine([kv, kv * 0.8, kv], kff);
+            for (name, gcode, path) in &cases {
+                let p = predict_contour_error(&m, gcode, 1e-3, 1_000_000).unwrap();
+                assert_eq!(p.commanded.corners.len(), 1, "{name}");
+                let (x, y) = (&p.actual[0], &p.actual[1]);
+                let mut worst: f64 = 0.0;
+                for i in 0..x.len() {
+                    let truth = reference_distance_to_path(path, [x[i], y[i]]);
+                    worst = worst.max((p.report.contour_error[i] - truth).abs());
+                }
+                eprintln!(
+                    "{name}, kv {kv}: max |ours - true distance| = {:.4} µm",
+                    worst * 1e3
+                );
+                assert!(
+                    worst <= 1e-4,
+                    "{name}, kv {kv}: off the true distance by {worst} mm"
+                );
             }
         }
     }
