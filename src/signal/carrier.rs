@@ -334,6 +334,41 @@ mod tests {
         );
     }
 
+    /// Not tuned to the paper's one signal: steady lines at other frequencies, amplitudes,
+    /// noise levels and record lengths are found and fitted with a handful of degrees of
+    /// freedom, to within a few σ·√(edf/n) of the truth.
+    #[test]
+    fn steady_carriers_of_other_signals() {
+        for (i, &(n, f, amp, sigma)) in [
+            (1000, 0.012, 0.02, 0.004),
+            (3000, 0.03, 0.005, 0.002),
+            (5000, 0.0041, 0.1, 0.01),
+            (8192, 0.11, 0.008, 0.003),
+            (20000, 0.0007, 0.03, 0.005),
+        ]
+        .iter()
+        .enumerate()
+        {
+            let (truth, x) = noisy_sine(n, f, amp, sigma, 10 + i as u64);
+            let (fh, _) = strongest_line(&x).unwrap();
+            assert!((fh - f).abs() < 0.5 / n as f64, "case {i}: f {fh} vs {f}");
+            let fit = Carrier::new(n, fh).unwrap().fit(&x).unwrap();
+            assert!(fit.edf < 8.0, "case {i}: edf {}", fit.edf);
+            let rms = (fit
+                .signal
+                .iter()
+                .zip(&truth)
+                .map(|(a, b)| (a - b).powi(2))
+                .sum::<f64>()
+                / n as f64)
+                .sqrt();
+            assert!(
+                rms < 3.0 * sigma * (8.0 / n as f64).sqrt(),
+                "case {i}: rms {rms}"
+            );
+        }
+    }
+
     #[test]
     fn changing_envelope_is_followed() {
         // Amplitude rising linearly then falling: the envelope basis follows it.

@@ -281,7 +281,7 @@ fn smoother_gain(s: &Smoothed, d: usize, f: f64) -> f64 {
 /// A strong mode contributes its strongest line at ≥ 8 periods per record whose Hann
 /// periodogram power exceeds (2 ln n + 8)·σ̂² (σ̂ from [`noise_sigma`]); lines closer than
 /// 2/n are merged. Each h_k starts as the carrier fit of x minus the other strong modes;
-/// then two rounds of backfitting alternate L = S(x − H) and h_k = fit(x − L − Σ_{j≠k} h_j),
+/// then one round of backfitting sets L = S(x − H) and refits h_k = fit(x − L − Σ_{j≠k} h_j),
 /// S the broadband smoother (`smooth`). H is used only if it lowers Mallows'
 /// Cp = ‖x − est‖² + 2σ̂²·df against S alone, with df = tr S + Σ_k (1 − G_S(f_k))·tr h_k (the
 /// share of a carrier's degrees of freedom S would not have spent anyway) when S is the 1-D
@@ -343,7 +343,8 @@ pub fn narrow_band_part(
             }
             t
         };
-        for _ in 0..1 {
+        // One backfitting round (see the doc above).
+        {
             let l = smooth(&sub(x, &total(&h)))?;
             for i in 0..h.len() {
                 let mut r = sub(x, &l.signal);
