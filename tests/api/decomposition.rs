@@ -1,9 +1,7 @@
 //! HTTP end to end: decomposition (stateless and of a stored measurement) and compensation
 //! (JSON, CSV, resampled reconstruction, CL points), on SQLite and PostgreSQL.
 
-#[macro_use]
-mod helpers;
-use helpers::*;
+use crate::helpers::*;
 use serde_json::{Value, json};
 
 /// A smooth field plus deterministic pseudo-noise on an nu × nv grid, mm.

@@ -1,9 +1,7 @@
 //! HTTP end-to-end tests of the volumetric error map routes (CONTRACT "Volumetric error
 //! map"), on a synthetic machine with known ISO 230-1 errors.
 
-#[macro_use]
-mod helpers;
-use helpers::*;
+use crate::helpers::*;
 
 use serde_json::{Value, json};
 use truecut::volumetric::{ShapeFamily, SyntheticMachine};

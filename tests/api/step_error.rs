@@ -1,10 +1,7 @@
 //! HTTP end to end: CONTRACT "Step error" — the exact route against the Python study's test
 //! vectors, sample generation, training / fine-tuning as jobs, prediction, and bad input.
 
-#[macro_use]
-mod helpers;
-
-use helpers::*;
+use crate::helpers::*;
 use serde_json::{Value, json};
 
 /// The study's test vectors (vendored in `tests/data/step/`) as (segment JSON, e_um).
