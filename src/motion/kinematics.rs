@@ -50,7 +50,9 @@ pub enum Kinematics {
 /// workpiece frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ToolPose {
+    /// Tool tip, mm, workpiece frame.
     pub tip: [f64; 3],
+    /// Unit tool axis, from the tip into the spindle, workpiece frame.
     pub axis: [f64; 3],
 }
 

@@ -17,6 +17,7 @@ pub struct ContourPrediction {
     pub commanded: Trajectory,
     /// Simulated machine-axis positions, one column per axis (mm / degrees).
     pub actual: Vec<Vec<f64>>,
+    /// Contour error of `actual` against the commanded path, per period and summarised.
     pub report: ContourReport,
 }
 

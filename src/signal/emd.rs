@@ -61,8 +61,11 @@ impl EmdParams {
 /// Σ imfs + residue == x exactly.
 #[derive(Clone, Debug, Serialize)]
 pub struct EmdResult {
+    /// Intrinsic mode functions, highest frequency first, each as long as the input.
     pub imfs: Vec<Vec<f64>>,
+    /// What is left after the last IMF (the trend), in the input's unit.
     pub residue: Vec<f64>,
+
     /// Sifting iterations used per IMF.
     pub sifts: Vec<usize>,
 }

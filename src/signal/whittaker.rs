@@ -12,8 +12,10 @@ use serde::Serialize;
 /// Result of a smoothing run.
 #[derive(Clone, Debug, Serialize)]
 pub struct Smoothed {
+    /// The smoothed signal, same length and unit as the input.
     #[serde(skip)]
     pub signal: Vec<f64>,
+
     /// Smoothing parameter λ used (dimensionless, per sample spacing).
     pub lambda: f64,
     /// Effective degrees of freedom tr(H) at λ.

@@ -20,8 +20,11 @@ pub struct AxisLine {
 pub struct AxisLines {
     /// The point all three lines pass through (mm).
     pub reference: [f64; 3],
+    /// The line along X (y and z at the reference).
     pub x: AxisLine,
+    /// The line along Y (x and z at the reference).
     pub y: AxisLine,
+    /// The line along Z (x and y at the reference).
     pub z: AxisLine,
 }
 

@@ -36,9 +36,12 @@ impl ResidualKind {
 /// (files written before the spline option hold `residual`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HybridModel {
+    /// The rigid-body ISO 230-1 part.
     pub kinematic: KinematicModel,
+    /// The residual as a 3-8-3 network (files written before the spline option).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub residual: Option<NetworkMap>,
+    /// The residual as a 3-D smoothing spline.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spline: Option<SmoothingSpline3>,
 }

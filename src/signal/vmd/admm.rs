@@ -191,7 +191,9 @@ pub struct VmdResult {
     pub modes: Vec<Vec<f64>>,
     /// Final centre frequencies in cycles per sample (0 … 0.5).
     pub omega: Vec<f64>,
+    /// ADMM iterations run (at most `max_iter`).
     pub iterations: usize,
+
     /// Last value of the convergence measure.
     pub u_diff: f64,
 }

@@ -43,11 +43,13 @@ pub enum LevelRule {
 /// Result of [`denoise`].
 #[derive(Clone, Debug)]
 pub struct Denoised {
+    /// The denoised signal, same length and unit as the input.
     pub signal: Vec<f64>,
     /// Noise estimate σ̂ = median(|cD1|)/0.6745, in the signal's unit.
     pub sigma: f64,
     /// Threshold λ = σ̂·sqrt(2 ln n).
     pub lambda: f64,
+    /// Decomposition level used.
     pub level: usize,
 }
 
