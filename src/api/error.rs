@@ -38,7 +38,6 @@ pub enum ApiError {
         /// Seconds the client should wait before retrying (the `Retry-After` header).
         retry_after_s: u64,
     },
-
     /// 500: a bug or an infrastructure failure; the cause is logged, never shown.
     Internal(String),
 }

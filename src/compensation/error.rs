@@ -38,7 +38,6 @@ pub enum Error {
         /// The allowed range, as a sentence.
         reason: &'static str,
     },
-
     /// A negative or non-finite tool radius.
     #[error("tool_radius must be a finite number >= 0 mm")]
     BadToolRadius,

@@ -1,6 +1,6 @@
 //! Contour error: distance from the simulated tool tip to the commanded path.
 //!
-//! Seed 003 §4.2: the commanded samples are joined into a continuous path by cubic-spline
+//! Zhang & Chen 2025 §4.2: the commanded samples are joined into a continuous path by cubic-spline
 //! interpolation (here a natural cubic spline through the distinct commanded tool-tip
 //! points, chord-length parameterized), and each actual point is matched to the nearest
 //! point of that path inside a window around its own command sample whose size follows
@@ -158,7 +158,7 @@ const MAX_WINDOW: usize = 200_000;
 /// Computes the contour error of `actual` against `commanded` (columns per machine axis,
 /// equal lengths ≥ 1, axis order X, Y, Z[, A, C]) on a machine with kinematics `kin`.
 /// Tool tips and axes come from the forward kinematics (workpiece frame).
-/// Reference: seed 003 §4.2, eq. 11 (see module docs for the window).
+/// Reference: Zhang & Chen 2025 §4.2, eq. 11 (see module docs for the window).
 /// Bad cases: where the path passes over itself within the window (a hairpin narrower than
 /// twice the tracking error) the nearer pass is matched.
 pub fn contour_error(

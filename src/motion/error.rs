@@ -8,7 +8,7 @@ pub enum Error {
     /// A servo parameter is out of its physical range (non-finite, non-positive, kff outside 0..1).
     #[error("servo parameter '{field}' = {value} is invalid: {reason}")]
     InvalidServo {
-        /// Parameter name as in the CONTRACT ("kv", "kff", "kp_v", "ti_v", "tc").
+        /// Parameter name as in openapi.yaml schema `Servo` ("kv", "kff", "kp_v", "ti_v", "tc").
         field: &'static str,
         /// The offending value.
         value: f64,
@@ -73,7 +73,6 @@ pub enum Error {
         /// Most periods the caller allows.
         limit: usize,
     },
-
     /// The program contains no motion at all.
     #[error("the program contains no motion (no G0/G1/G2/G3 block moves an axis)")]
     EmptyProgram,

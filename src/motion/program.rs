@@ -93,7 +93,6 @@ pub struct Block {
 pub struct Program {
     /// Executable blocks in program order.
     pub blocks: Vec<Block>,
-
     /// First line that programs the A axis, if any.
     pub first_a_line: Option<usize>,
     /// First line that programs the C axis, if any.
@@ -242,7 +241,7 @@ impl Block {
 
     /// Length of the block's path in program XYZ (mm): chord for lines, helix length
     /// √((r̄·|sweep|)² + Δh²) for arcs with mean radius r̄, 0 for dwells.
-    /// Reference: seed 003 eq. 2 (L_i, tool-tip displacement of a block).
+    /// Reference: Zhang & Chen 2025 eq. 2 (L_i, tool-tip displacement of a block).
     pub fn xyz_length(&self) -> f64 {
         let (s, e) = (&self.start.xyz, &self.end.xyz);
         match self.motion {

@@ -1,16 +1,16 @@
 //! The coarse-to-fine decomposition of a machining error into systematic and random parts
-//! (paper 002 section 2.3.4), with the refinement stage that makes it reach the paper's
+//! (Chen et al. 2024 §2.3.4), with the refinement stage that makes it reach the paper's
 //! accuracy.
 //!
-//! Stages 1-4 are the paper's: VMD → screening → X1; EMD(X1) → screening against the
+//! Stages 1-4 are Chen et al. 2024's: VMD → screening → X1; EMD(X1) → screening against the
 //! measured error → X2; wavelet soft-threshold of every weak component → X3; X4 = X2 + X3.
-//! Run as published (REPORT §1) they fall short of the paper's Table 3 for three reasons:
+//! Run as published (peer study §1) they fall short of the paper's Table 3 for three reasons:
 //! 1. every kept component keeps all the noise inside its band: a VMD mode at α = 2000 is a
 //!    ~1/√α wide Lorentzian and passes ~0.19σ of white noise, and no later stage touches X2;
 //! 2. EMD of X1 often splits a systematic sinusoid into a strong IMF and a weakly correlated
 //!    "mode-mixing" IMF, which is sent to the weak path ...
 //! 3. ... where the universal soft threshold at the maximum level shrinks every coefficient
-//!    of the bands that carry it by λ (REPORT §3: db4 level 8 mean abs 0.0034 mm vs level 4
+//!    of the bands that carry it by λ (peer study §3: db4 level 8 mean abs 0.0034 mm vs level 4
 //!    0.0010 mm), and the mirror extension flattens the ends (17/20 worst errors at an end).
 //!
 //! The fix (stage 5, `refine`, on by default): the systematic part is re-estimated from the
@@ -20,7 +20,7 @@
 //! least-squares smoother of the rest whose only parameter is chosen by GCV (no truth), with
 //! natural ends; with the lines removed GCV can smooth the rest harder. H is kept only where
 //! Mallows' Cp says it helps. Stage 3 uses the "noise" level rule instead of the maximum level.
-//! With `refine: false` the result is X4 (the paper's pipeline with the level rule).
+//! With `refine: false` the result is X4 (Chen et al. 2024's pipeline with the level rule).
 
 use super::carrier::{Carrier, strongest_line};
 use super::emd::{EmdParams, emd};
@@ -70,9 +70,9 @@ pub struct CoarseToFineParams {
     pub vmd: VmdParams,
     /// Stage 2: EMD parameters of the sifting of X1.
     pub emd: EmdParams,
-    /// Screening threshold on |r| (paper: 0.3).
+    /// Screening threshold on |r| (Chen et al. 2024: 0.3).
     pub threshold: f64,
-    /// Wavelet for stage 3 (paper: Daubechies; default db4).
+    /// Wavelet for stage 3 (Chen et al. 2024: Daubechies; default db4).
     pub wavelet: String,
     /// Decomposition level of stage 3 (default the `"noise"` rule).
     pub wavelet_level: LevelChoice,
@@ -203,11 +203,11 @@ pub fn noise_sigma(x: &[f64]) -> f64 {
 /// The coarse-to-fine decomposition of a 1-D machining error `x` (mm): returns the
 /// systematic part and what each stage found; random = x − systematic.
 ///
-/// Formula: stages 1-4 of paper 002 §2.3.4 (eqs. 17-22); stage 5 as in the module doc:
+/// Formula: stages 1-4 of Chen et al. 2024 §2.3.4 (eqs. 17–22); stage 5 as in the module doc:
 /// systematic = H + S_λ(x − H), H the carriers of [`narrow_band_part`] (empty unless they
 /// lower Mallows' Cp), S_λ the GCV Whittaker smoother.
 /// Known bad cases: fewer than 16 samples (error); with a noise level comparable to the
-/// systematic error the screening keeps noise modes (REPORT section 2); stage 5 is then what
+/// systematic error the screening keeps noise modes (peer study §2); stage 5 is then what
 /// helps.
 pub fn coarse_to_fine(
     x: &[f64],

@@ -13,12 +13,12 @@ use super::wavelet::{Wavelet, denoise};
 use super::whittaker::Smoothed;
 use serde::{Deserialize, Serialize};
 
-/// Decomposition method (CONTRACT "Decomposition"). `coarse_to_fine` is the default; the
-/// others are the single-method baselines of the paper's Table 3.
+/// Decomposition method (openapi.yaml `POST /v1/decompose`). `coarse_to_fine` is the default; the
+/// others are the single-method baselines of Chen et al. 2024's Table 3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
-    /// The five-stage pipeline of [`super::coarse_to_fine`] (VMD, EMD, wavelet, refinement).
+    /// The five-stage pipeline of [`coarse_to_fine()`] (VMD, EMD, wavelet, refinement).
     #[default]
     CoarseToFine,
     /// VMD alone: the modes whose |r| against the signal passes the threshold.
@@ -104,14 +104,13 @@ pub struct Decomposition {
     pub random: Vec<f64>,
     /// What the stages found.
     pub components: Components,
-
     /// Probe flyers found (sample or grid indices k, ascending): left out of the systematic
     /// part, which there comes from their neighbours; their whole deviation is in `random`
-    /// ([`super::flyers`], CONTRACT v1.1 "Probe flyers").
+    /// ([`super::flyers`], openapi.yaml measurement upload and decomposition `outliers`).
     pub outliers: Vec<usize>,
 }
 
-/// Largest accepted signal (CONTRACT: sync up to 250,000 samples; the core takes 4x that).
+/// Largest accepted signal (openapi.yaml: sync up to 250,000 samples; the core takes 4x that).
 pub const MAX_SAMPLES: usize = 1_000_000;
 
 /// Decomposes `x` (mm) with `method`. With a grid (`params.nu`, `params.nv`, k = iv·nu + iu)
@@ -122,7 +121,7 @@ pub const MAX_SAMPLES: usize = 1_000_000;
 /// Probe flyers (`params.flyers`, on by default) are found and left out first
 /// ([`super::flyers`]): on clean data the answer is the plain decomposition, bit for bit.
 ///
-/// Reference: paper 002; see [`coarse_to_fine`] for the stages. Known bad cases: see there
+/// Reference: Chen et al. 2024; see [`coarse_to_fine`] for the stages. Known bad cases: see there
 /// and [`super::flyers`].
 pub fn decompose(
     x: &[f64],

@@ -15,7 +15,6 @@ pub struct Smoothed {
     /// The smoothed signal, same length and unit as the input.
     #[serde(skip)]
     pub signal: Vec<f64>,
-
     /// Smoothing parameter λ used (dimensionless, per sample spacing).
     pub lambda: f64,
     /// Effective degrees of freedom tr(H) at λ.

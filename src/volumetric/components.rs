@@ -47,7 +47,6 @@ pub struct ComponentCurves {
     pub squareness: Vec<Squareness>,
     /// Tool offset from the spindle reference (x, y, z), mm, used for the Abbe terms.
     pub tool_offset_mm: [f64; 3],
-
     /// What could not be identified and why.
     pub notes: Vec<String>,
 }

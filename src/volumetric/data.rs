@@ -7,7 +7,7 @@ use serde::{Deserialize, Serialize};
 ///
 /// `nodes` are commanded positions (mm, machine coordinates); `errors` are the
 /// measured positioning errors there, actual − commanded (mm), as a laser tracker or
-/// interferometer reports them (seed 001 §1, step 1).
+/// interferometer reports them (Xiang et al. 2019 §1, step 1).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct VolumetricData {
     /// Commanded positions (x, y, z), mm, machine coordinates.

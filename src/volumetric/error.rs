@@ -96,7 +96,6 @@ pub enum Error {
         /// The controller's most points per axis.
         limit: usize,
     },
-
     /// A stored model could not be decoded.
     #[error("stored volumetric model is unreadable: {0}")]
     ModelFormat(String),

@@ -14,7 +14,7 @@ pub enum ResidualKind {
     /// Tensor-product cubic P-spline, λ by GCV (default: deterministic, milliseconds).
     #[default]
     Spline,
-    /// The seeds' small sigmoid network (3-8-3).
+    /// Xiang et al. 2019's and Wang, Dai & Hong's small sigmoid network (3-8-3).
     Network,
 }
 

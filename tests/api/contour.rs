@@ -1,5 +1,5 @@
-//! HTTP end to end: POST /v1/machines/{machine}/contour-error (CONTRACT "Contour error"),
-//! and the `truecut contour` CLI.
+//! HTTP end to end: POST /v1/machines/{machine}/contour-error (openapi.yaml), and the
+//! `truecut contour` CLI.
 
 use crate::helpers::*;
 

@@ -1,5 +1,6 @@
-//! HTTP end to end: CONTRACT "Step error" — the exact route against the Python study's test
-//! vectors, sample generation, training / fine-tuning as jobs, prediction, and bad input.
+//! HTTP end to end: openapi.yaml `POST /v1/step-error` and the `step-error-*` routes — the exact
+//! route against the Python study's test vectors, sample generation, training / fine-tuning as
+//! jobs, prediction, and bad input.
 
 use crate::helpers::*;
 use serde_json::{Value, json};

@@ -20,7 +20,6 @@ use serde::{Deserialize, Serialize};
 pub struct ModelScore {
     /// The model kind scored.
     pub model: ModelKind,
-
     /// RMS over held-out nodes of the length of (predicted − measured) error (mm).
     pub cv_rms_mm: Option<f64>,
     /// Largest such length (mm).
