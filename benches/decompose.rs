@@ -1,10 +1,10 @@
 //! Decomposition speed at n = 2,025, 20,000 and 250,000 samples.
 //!
-//! `cargo bench --bench decompose` times our methods on the paper's signal (eq. 23 continued
+//! `cargo bench --bench decompose` times our methods on Chen et al. 2024's signal (eq. 23 continued
 //! with step 0.01, σ = 0.005 mm noise) and prints one JSON line per size; with
 //! `-- --signals DIR` it reads `DIR/signal_N.json` (written by `bench/peers_decompose.py`,
 //! which times the Python peers on the same signals in the same run and prints the ratios).
-//! Alone it prints the ratio of the default pipeline to the paper's stages 1-4 (baseline).
+//! Alone it prints the ratio of the default pipeline to Chen et al. 2024's stages 1-4 (baseline).
 //! Each line also gives the accuracy of both against the true systematic error (eq. 23
 //! without the noise): Pearson r, max and mean abs error (mm), so a speed-up that changes
 //! results shows here.

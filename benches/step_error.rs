@@ -1,4 +1,4 @@
-//! Step-error benchmarks and the seed-000 experiment
+//! Step-error benchmarks and the experiment of Zhang et al. 2023
 //! (run: `cargo bench --bench step_error -- [speed|http|network|network-more|all]`).
 //!
 //! * speed: exact step error (core, no JSON) and network prediction in segments/s, with the
@@ -6,8 +6,9 @@
 //!   search, numpy and PyTorch forward passes of the same network) run in the same process tree.
 //! * http: `POST /v1/step-error` end to end (in-process server on 127.0.0.1, 100,000 segments
 //!   a request) against typed serde decoding of the same body in the same run.
-//! * network: the paper's experiment — train on surface 1 (70/30), transfer to surfaces 2 and 3
-//!   with 0/1/5/10/15 % fine-tuning — printed beside the paper's and the Python study's figures.
+//! * network: Zhang et al. 2023's experiment — train on surface 1 (70/30), transfer to surfaces 2
+//!   and 3 with 0/1/5/10/15 % fine-tuning — printed beside Zhang et al. 2023's and the Python
+//!   study's figures.
 
 use std::process::Command;
 use std::time::Instant;
@@ -228,7 +229,7 @@ fn speed() {
 }
 
 fn network() {
-    println!("== network: the seed-000 experiment ==");
+    println!("== network: the experiment of Zhang et al. 2023 ==");
     let t0 = Instant::now();
     let data: Vec<SurfaceData> = (1..=3).map(surface_data).collect();
     println!(

@@ -3,7 +3,7 @@
 //! controller's table), on a fine 7×6×5 and a coarse 4×4×3 grid.
 //!
 //! Run: `cargo bench --bench volumetric` (add `-- quick` for 2 seeds, `-- seed004` for
-//! the seed 004 experiment only, `-- floor` for the noise-free information floor only).
+//! the Wang, Dai & Hong experiment only, `-- floor` for the noise-free information floor only).
 
 use std::time::Instant;
 use truecut::volumetric::{
@@ -127,13 +127,13 @@ fn table(title: &str, family: ShapeFamily, sag_mm: f64, seeds: &[u64]) {
     }
 }
 
-/// Seed 004 §3–4: measurements along axis lines (20 per axis through one reference
-/// corner; the paper used 39 gauge positions), 20×20×20 training samples by the additive
+/// Wang, Dai & Hong §3–4: measurements along axis lines (20 per axis through one reference
+/// corner; Wang, Dai & Hong used 39 gauge positions), 20×20×20 training samples by the additive
 /// rule, a 3-8-3 sigmoid network, and the confidence ratio RMSDL/RMSAL on an 80×65×50
 /// grid of check points (mean length of the prediction error over mean length of the true
-/// error). Paper: 0.0396, against its own variational model as the truth.
+/// error). Wang, Dai & Hong: 0.0396, against its own variational model as the truth.
 fn seed_004(seeds: &[u64]) {
-    println!("\n### Seed 004 experiment: axis lines → additive rule → 3-8-3 network\n");
+    println!("\n### Wang, Dai & Hong experiment: axis lines → additive rule → 3-8-3 network\n");
     println!(
         "| machine seed | network vs its samples, RMSDL/RMSAL (paper: 0.0396) | network vs the true machine on 80×65×50 points | additive samples vs the true machine | train s |"
     );
@@ -205,7 +205,7 @@ fn seed_004(seeds: &[u64]) {
             .map(|&p| len(m.error(p), [0.0; 3]))
             .sum::<f64>()
             / samples.nodes.len() as f64;
-        // the paper's measure: the network against the model its samples came from
+        // Wang, Dai & Hong's measure: the network against the model its samples came from
         let fitted = net.eval_many(&samples.nodes);
         let n = samples.nodes.len() as f64;
         let dl_s: f64 = fitted

@@ -16,16 +16,20 @@
 //! - [`server`]: starts the HTTP service (store, jobs, router, listener) and shuts it down gracefully.
 //! - [`cli`]: command-line entry points: `serve` (with `--demo`) and one subcommand per capability.
 //! - [`numeric`]: the toolbox every core may use: Brent line search, tridiagonal solve, B-spline basis, difference penalties, least squares, vec3, thread splitting.
-//! - [`geometry`]: cubic splines, height surfaces, iso-parametric path sampling, exact ball-end step error (seed 000) and its network features.
-//! - [`nn`]: small dense networks (MLP): z-score, dropout, SGD-momentum/Adam, early stopping, binary model format (seeds 000, 001, 004).
-//! - [`volumetric`]: volumetric error maps (seeds 001, 004): trilinear table, 3-8-3 network, ISO 230-1 rigid-body model, hybrid, auto by CV, compensation tables.
-//! - [`motion`]: contour error from G-code (seed 003): G-code reader, RTCP interpolation, kinematics, servo cascade, contour error.
-//! - [`signal`]: machining-error decomposition (seed 002): VMD, EMD, wavelets, Whittaker smoothing, screening, coarse-to-fine in 1-D and on 2-D grids.
-//! - [`compensation`]: normal-offset compensation (seed 002): compensated points, reconstructed compensated surface, compensated CL points.
+//! - [`geometry`]: cubic splines, height surfaces, iso-parametric path sampling, exact ball-end step error (Zhang et al. 2023) and its network features.
+//! - [`nn`]: small dense networks (MLP): z-score, dropout, SGD-momentum/Adam, early stopping, binary model format (Zhang et al. 2023; Xiang et al. 2019; Wang, Dai & Hong).
+//! - [`volumetric`]: volumetric error maps (Xiang et al. 2019 and Wang, Dai & Hong): trilinear table, 3-8-3 network, ISO 230-1 rigid-body model, hybrid, auto by CV, compensation tables.
+//! - [`motion`]: contour error from G-code (Zhang & Chen 2025): G-code reader, RTCP interpolation, kinematics, servo cascade, contour error.
+//! - [`signal`]: machining-error decomposition (Chen et al. 2024): VMD, EMD, wavelets, Whittaker smoothing, screening, coarse-to-fine in 1-D and on 2-D grids.
+//! - [`compensation`]: normal-offset compensation (Chen et al. 2024): compensated points, reconstructed compensated surface, compensated CL points.
 //! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check; the motion-gap request.
 //! - [`step_error`]: step error as a capability: flat segment batches solved on all cores, network training and the model file's metadata.
 //! - [`codec`]: hand-written fast decoders for large bodies (step-error segment batches), with their own error.
 //! - [`wire`]: serde types of the HTTP bodies that both the server and the CLI use.
+
+// Every public item says what it is (units for numbers); CI's clippy -D warnings makes it an
+// error.
+#![warn(missing_docs)]
 
 pub mod api;
 pub mod cli;

@@ -1,4 +1,5 @@
 //! The `truecut` binary: parse the command line, start telemetry, dispatch.
+#![warn(missing_docs)]
 
 use clap::Parser;
 

@@ -1,4 +1,4 @@
-//! A simulated compensation loop beside the paper's Table 7: a part with a smooth,
+//! A simulated compensation loop beside Chen et al. 2024's Table 7: a part with a smooth,
 //! repeatable systematic error field (~45 µm mean abs) plus random error is probed, the
 //! deviations are decomposed, the nominal points are compensated along their normals, and the
 //! same machine cuts the compensated points (the same systematic field, fresh random error).
@@ -60,7 +60,8 @@ fn compensation_loop_reaches_the_random_floor() {
         refine,
         ..Default::default()
     };
-    // name, offsets rule; paper Table 7 row (before max, before mean, after max, after mean)
+    // name, offsets rule; Chen et al. 2024 Table 7 row (before max, before mean, after max, after
+    // mean)
     type Rule = Box<dyn Fn(&[f64]) -> Vec<f64>>;
     let rules: Vec<(&str, Rule, [f64; 4])> = vec![
         (

@@ -1,5 +1,5 @@
-//! How a measurement grid should be read: row-major (the paper), serpentine, or as a 2-D
-//! field. The study of REPORT §8 (45 × 45 grid, σ = 0.005 mm, 20 seeds) rerun on our cores;
+//! How a measurement grid should be read: row-major (Chen et al. 2024), serpentine, or as a 2-D
+//! field. The peer study's §8 experiment (45 × 45 grid, σ = 0.005 mm, 20 seeds) rerun on our cores;
 //! its outcome is why `order` defaults to `2d`.
 
 use rand::SeedableRng;
@@ -9,7 +9,7 @@ use truecut::signal::{DecomposeParams, Method, Order, decompose};
 
 const N: usize = 45;
 
-/// Tilt + bump + low-frequency waviness (REPORT §8), mm; k = iv·nu + iu.
+/// Tilt + bump + low-frequency waviness (peer study §8), mm; k = iv·nu + iu.
 fn field() -> Vec<f64> {
     let mut f = Vec::with_capacity(N * N);
     for iv in 0..N {
@@ -63,9 +63,7 @@ fn two_d_reading_beats_row_major_and_serpentine() {
             0.00081,
         ),
     ];
-    println!(
-        "reading | ours corr / max / mean abs (mm, 20 seeds) | REPORT's nearest peer mean abs"
-    );
+    println!("reading | ours corr / max / mean abs (mm, 20 seeds) | peer study's nearest mean abs");
     let mut means = Vec::new();
     for (name, params, peer) in &variants {
         let mut acc = [0.0; 3];
@@ -102,6 +100,6 @@ fn two_d_reading_beats_row_major_and_serpentine() {
         "2-D not clearly better than row-major: {means:?}"
     );
     assert!(means[3] < means[1] && means[3] < means[2], "{means:?}");
-    // Serpentine removes the row-end jumps the paper's reading smears.
+    // Serpentine removes the row-end jumps Chen et al. 2024's reading smears.
     assert!(means[1] < means[0], "{means:?}");
 }

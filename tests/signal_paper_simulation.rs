@@ -1,8 +1,8 @@
-//! The paper's simulation (seed 002, section 3, eq. 23) over 20 seeds, beside its Table 3 and
-//! beside the Python peers (tests/data/decomposition/REPORT.md §1).
+//! The paper's simulation (Chen et al. 2024, section 3, eq. 23) over 20 seeds, beside its Table 3
+//! and beside the Python peers (peer study §1, `tests/data/decomposition/REPORT.md`).
 //!
 //! x(t) = 0.04·[sin(1.6πt) + cos(0.05πt) + 4·e^(−3t)] mm, t = 1 … 21.24 step 0.01 (2,025
-//! samples), plus N(0, σ = 0.005 mm) noise (σ, not variance: REPORT §2 shows only this reading
+//! samples), plus N(0, σ = 0.005 mm) noise (σ, not variance: peer study §2 shows only this reading
 //! is consistent with Table 3). Our noise comes from rand's StdRng with seeds 0..19 (not
 //! numpy's), so per-seed values differ from the peers'; the 20-seed means are comparable.
 
@@ -83,7 +83,9 @@ fn table3_twenty_seeds() {
             [0.99929, 0.00647, 0.00134],
         ),
     ];
-    println!("method | ours corr / max / mean (worst mean abs) | paper Table 3 | peers (REPORT)");
+    println!(
+        "method | ours corr / max / mean (worst mean abs) | paper Table 3 | peers (peer study)"
+    );
     let mut results = Vec::new();
     for (name, method, params, paper, peer) in &rows {
         let mut acc = [0.0; 3];
@@ -120,15 +122,15 @@ fn table3_twenty_seeds() {
         results.push(acc);
     }
     let (vmd, c2f_paper, c2f) = (results[0], results[3], results[4]);
-    // Faithful baselines: our VMD row sits in the peers' band (REPORT §4: corr ≈ 0.9996,
+    // Faithful baselines: our VMD row sits in the peers' band (peer study §4: corr ≈ 0.9996,
     // max ≈ 0.006–0.007 (ours 0.0075 with other noise draws), mean ≈ 0.0011).
     assert!(vmd[0] > 0.9994 && vmd[2] < 0.0013, "VMD row {vmd:?}");
-    // The paper's stages as published stay short of Table 3 (REPORT: 0.00134 mean abs).
+    // The paper's stages as published stay short of Table 3 (peer study §1: 0.00134 mean abs).
     assert!(
         c2f_paper[2] > 0.0009,
         "stages 1-4 unexpectedly reach the paper: {c2f_paper:?}"
     );
-    // The default meets the paper's coarse-to-fine max and mean abs.
+    // The default meets Chen et al. 2024's coarse-to-fine max and mean abs.
     assert!(
         c2f[1] <= 0.0039,
         "default max abs {:.5} > paper 0.0039",
@@ -139,9 +141,9 @@ fn table3_twenty_seeds() {
         "default mean abs {:.5} > paper 0.0008",
         c2f[2]
     );
-    // Correlation: the paper's 0.9998 is reached since stage 5 refits the sinusoid's VMD
+    // Correlation: Chen et al. 2024's 0.9998 is reached since stage 5 refits the sinusoid's VMD
     // mode as a carrier with a slow envelope (≈ 0.99982; with the broadband smoother alone
-    // it was 0.99973, the level REPORT §1's truth-tuned smoother reaches, 0.99977).
+    // it was 0.99973, the level peer study §1's truth-tuned smoother reaches, 0.99977).
     assert!(
         c2f[0] >= 0.9998,
         "default corr {:.5} < paper 0.9998",
@@ -150,8 +152,8 @@ fn table3_twenty_seeds() {
     assert!(c2f[2] < 0.7 * c2f_paper[2] && c2f[2] < vmd[2]);
 }
 
-/// The automatic K (instantaneous-frequency-mean rule) on the paper's signal: the paper
-/// found K = 7 (section 3.1). The rule is noisy from draw to draw (our 8 seeds give
+/// The automatic K (instantaneous-frequency-mean rule) on Chen et al. 2024's signal: Chen et al.
+/// 2024 found K = 7 (section 3.1). The rule is noisy from draw to draw (our 8 seeds give
 /// 7 8 7 10 7 6 5 7), so we check the median over the seeds, not every seed.
 #[test]
 fn auto_k_median_is_the_papers_seven() {

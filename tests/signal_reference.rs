@@ -92,7 +92,8 @@ fn rel_rms(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// VMD against the lean reference (same arithmetic as vmdpy, last iterate, generalised mirror)
-/// on the paper's 2,025-sample signal, and against vmdpy itself on the 256/255-sample unit case.
+/// on Chen et al. 2024's 2,025-sample signal, and against vmdpy itself on the 256/255-sample unit
+/// case.
 ///
 /// Tolerance: modes to 1e-6 mm absolute (the signal is ~0.1 mm; summation order differs from
 /// numpy's, and with tol 1e-7 the stopping iteration may differ by one, which moves a mode by

@@ -1,9 +1,9 @@
-//! Normal-offset compensation (CONTRACT "Compensation"; seed 002 §4.3):
+//! Normal-offset compensation (openapi.yaml; Chen et al. 2024 §4.3):
 //! `GET /v1/machines/{machine}/surfaces/{surface}/compensation?measurement={id}` as JSON or
-//! (`Accept: text/csv`) CSV `x,y,z,i,j,k,offset`. Extensions: `nu=&nv=` resamples the
-//! reconstructed compensated surface at that density; `cl=true` adds compensated ball-end
-//! cutter-location points (CL' = CL − offset·n) for `tool_radius` (query, else the surface's).
-//! Also the one `From<compensation::Error> for ApiError`.
+//! (`Accept: text/csv`) CSV `x,y,z,i,j,k,offset`. Extensions: `nu=&nv=` resamples the reconstructed
+//! compensated surface at that density; `cl=true` adds compensated ball-end cutter-location points
+//! (CL' = CL − offset·n) for `tool_radius` (query, else the surface's). Also the one
+//! `From<compensation::Error> for ApiError`.
 
 use std::collections::HashMap;
 

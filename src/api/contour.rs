@@ -1,5 +1,5 @@
-//! Contour error from G-code: `POST /v1/machines/{machine}/contour-error` (CONTRACT
-//! "Contour error"; seed 003). The simulation is the motion core's, the answer's shape
+//! Contour error from G-code: `POST /v1/machines/{machine}/contour-error` (openapi.yaml;
+//! Zhang & Chen 2025). The simulation is the motion core's, the answer's shape
 //! [`crate::wire::contour`]'s (shared with `truecut contour --output`).
 
 use axum::Router;
@@ -23,7 +23,7 @@ pub fn routes() -> Router<AppState> {
     Router::new().route("/v1/machines/{machine}/contour-error", post(contour_error))
 }
 
-/// Most interpolation periods answered synchronously (CONTRACT: sync up to 1,000,000).
+/// Most interpolation periods answered synchronously (openapi.yaml: sync up to 1,000,000).
 pub const MAX_SYNC_PERIODS: usize = 1_000_000;
 
 /// Body of the route.

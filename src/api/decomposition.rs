@@ -1,4 +1,4 @@
-//! Machining-error decomposition (CONTRACT "Decomposition"; seed 002):
+//! Machining-error decomposition (openapi.yaml `POST /v1/decompose`; Chen et al. 2024):
 //! `POST /v1/decompose` (stateless), `POST/GET .../measurements/{id}/decomposition`
 //! (computed on the measurement's deviations, stored as its current decomposition).
 //! Also the one `From<signal::Error> for ApiError`.
@@ -20,7 +20,7 @@ use crate::signal::{self, DecomposeParams, Method, decompose};
 
 /// Document kind under which a measurement's current decomposition is stored.
 pub const DOC_KIND: &str = "decomposition";
-/// Largest signal decomposed synchronously (CONTRACT: sync up to 250,000 samples); larger
+/// Largest signal decomposed synchronously (openapi.yaml: sync up to 250,000 samples); larger
 /// ones (up to [`signal::decompose::MAX_SAMPLES`]) run as a job (202).
 pub const MAX_SYNC: usize = 250_000;
 

@@ -32,7 +32,12 @@ pub enum ApiError {
     /// 422: well-formed but semantically unusable input.
     Unprocessable(String),
     /// 503: the worker pool is full; retry after the given seconds.
-    Unavailable { detail: String, retry_after_s: u64 },
+    Unavailable {
+        /// What is busy, shown to the client.
+        detail: String,
+        /// Seconds the client should wait before retrying (the `Retry-After` header).
+        retry_after_s: u64,
+    },
     /// 500: a bug or an infrastructure failure; the cause is logged, never shown.
     Internal(String),
 }

@@ -1,5 +1,5 @@
-//! Sim-to-real gap diagnosis: `POST /v1/machines/{machine}/gap-diagnosis` (CONTRACT
-//! "Sim-to-real gap diagnosis", motion and part domains). The motion request is the gap
+//! Sim-to-real gap diagnosis: `POST /v1/machines/{machine}/gap-diagnosis` (openapi.yaml,
+//! motion and part domains). The motion request is the gap
 //! core's ([`gap::GapRequest`], [`gap::diagnose_motion_request`]); this file loads what is
 //! stored (machine, surface, measurement) and chooses between answering and a job.
 
@@ -25,7 +25,7 @@ pub fn routes() -> Router<AppState> {
     Router::new().route("/v1/machines/{machine}/gap-diagnosis", post(gap_diagnosis))
 }
 
-/// Samples per block answered synchronously (CONTRACT: sync up to 100,000 samples a block);
+/// Samples per block answered synchronously (openapi.yaml: sync up to 100,000 samples a block);
 /// larger motion blocks run as a job (202 `{"job": id}`).
 pub const MAX_SYNC_SAMPLES: usize = 100_000;
 #[derive(Debug, Deserialize)]

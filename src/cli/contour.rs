@@ -1,5 +1,5 @@
-//! `truecut contour FILE --machine ID|FILE.json`: contour error of a G-code program (seed 003),
-//! computed locally by the motion core (no server needed).
+//! `truecut contour FILE --machine ID|FILE.json`: contour error of a G-code program (Zhang & Chen
+//! 2025), computed locally by the motion core (no server needed).
 
 use std::path::PathBuf;
 

@@ -8,7 +8,7 @@ use anyhow::{Context, bail};
 
 use crate::signal::{DecomposeParams, Method, Order, decompose};
 
-/// Decompose a machining error into systematic and random parts (seed 002: VMD, EMD,
+/// Decompose a machining error into systematic and random parts (Chen et al. 2024: VMD, EMD,
 /// wavelet, coarse-to-fine). Prints CSV `signal,systematic,random` (mm) or the service's JSON.
 #[derive(Debug, clap::Args)]
 pub struct Args {

@@ -1,7 +1,7 @@
 //! `truecut gap ...`: sim-to-real gap diagnosis computed locally by the gap core (no server):
 //! `selfcheck` (blind truth plants, confusion matrix), `diagnose` (a motion request body
 //! against a machine file) and `csv` (command/actual columns of a CSV trace, e.g. the real
-//! traces in `shared/data/`).
+//! traces of the UMich CNC mill set, UMich SMART Lab 2018, not in the repo).
 
 use std::path::PathBuf;
 

@@ -27,13 +27,14 @@ pub enum Command {
     Serve(crate::config::Config),
     /// Predict the contour error of a G-code program on a machine (machine JSON file or stored id).
     Contour(contour::Args),
-    /// Split a machining error (CSV or JSON) into systematic and random parts (seed 002).
+    /// Split a machining error (CSV or JSON) into systematic and random parts (Chen et al. 2024).
     Decompose(decompose::Args),
     /// Sim-to-real gap diagnosis: `selfcheck`, `diagnose` (a motion body) or `csv` (a trace).
     Gap(gap::Args),
     /// Fit a volumetric error map to measured nodes (CSV), export a compensation table.
     Volumetric(volumetric::Args),
-    /// Step error of ball-end toolpaths (seed 000): `exact`, `samples`, `train`, `predict`.
+    /// Step error of ball-end toolpaths (Zhang et al. 2023): `exact`, `samples`, `train`,
+    /// `predict`.
     Step(step::Args),
 }
 

@@ -1,5 +1,5 @@
-//! `truecut step ...`: step error of ball-end finishing (seed 000), computed locally by the
-//! geometry and nn cores (no server needed). Files use the JSON bodies of the HTTP routes.
+//! `truecut step ...`: step error of ball-end finishing (Zhang et al. 2023), computed locally by
+//! the geometry and nn cores (no server needed). Files use the JSON bodies of the HTTP routes.
 
 use std::path::PathBuf;
 
@@ -68,7 +68,7 @@ pub enum StepCommand {
         /// Maximum epochs (default 300; 100 when fine-tuning).
         #[arg(long)]
         epochs: Option<usize>,
-        /// Use the seed paper's settings (N(0,1), SGD 1e-5 momentum 0.8, dropout 0.5).
+        /// Use Zhang et al. 2023's settings (N(0,1), SGD 1e-5 momentum 0.8, dropout 0.5).
         #[arg(long)]
         paper: bool,
         /// Held-out fraction for the reported test errors.

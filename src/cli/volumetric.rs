@@ -11,8 +11,9 @@ use crate::volumetric::{
     self, FitOptions, ModelKind, ShapeFamily, SyntheticMachine, TableSpec, VolumetricData,
 };
 
-/// Fit a volumetric error map (trilinear table, the seeds' 3-8-3 network, the ISO 230-1
-/// rigid-body model, or a hybrid; `auto` picks by cross-validation) to measured nodes.
+/// Fit a volumetric error map (trilinear table, Xiang et al. 2019's and Wang, Dai & Hong's 3-8-3
+/// network, the ISO 230-1 rigid-body model, or a hybrid; `auto` picks by cross-validation) to
+/// measured nodes.
 #[derive(Debug, clap::Args)]
 pub struct Args {
     /// CSV of measured nodes with header x,y,z,dx,dy,dz (mm). Not needed with --synthetic.

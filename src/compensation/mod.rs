@@ -1,4 +1,4 @@
-//! Normal-offset compensation (seed 002): compensated points, the reconstructed compensated
+//! Normal-offset compensation (Chen et al. 2024): compensated points, the reconstructed compensated
 //! surface at any density, and compensated ball-end cutter-location points.
 
 pub mod error;

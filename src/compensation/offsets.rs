@@ -1,4 +1,5 @@
-//! Normal-offset compensation of a probed grid (paper 002 section 4.3; CONTRACT "Compensation").
+//! Normal-offset compensation of a probed grid (Chen et al. 2024 §4.3; openapi.yaml
+//! `GET /v1/machines/{machine}/surfaces/{surface}/compensation`).
 
 use super::error::Error;
 
@@ -40,10 +41,11 @@ pub(crate) fn check_vectors(
 /// outward normal by the systematic error, so that a machine that leaves `offset` of material
 /// there again lands on the nominal surface.
 ///
-/// Reference: paper 002 §2 and §4.3 ("compensated along the opposite direction of the outer
-/// normal vector"); CONTRACT "Compensation". Units: mm. Errors: mismatched lengths,
-/// non-finite values, zero normals. Known bad cases: offsets comparable to the local radius
-/// of curvature (the moved points would cross; not checked, machining errors are µm).
+/// Reference: Chen et al. 2024 §2 and §4.3 ("compensated along the opposite direction of the outer
+/// normal vector"); openapi.yaml `GET /v1/machines/{machine}/surfaces/{surface}/compensation`.
+/// Units: mm. Errors: mismatched lengths, non-finite values, zero normals. Known bad cases: offsets
+/// comparable to the local radius of curvature (the moved points would cross; not checked,
+/// machining errors are µm).
 pub fn compensate_points(
     points: &[[f64; 3]],
     normals: &[[f64; 3]],

@@ -28,11 +28,18 @@ pub struct CompensatedSurface {
 /// Points, normals, offsets (and CL points when a tool radius is given) on a regular grid.
 #[derive(Clone, Debug, Serialize)]
 pub struct CompensatedGrid {
+    /// Grid points along u.
     pub nu: usize,
+    /// Grid points along v.
     pub nv: usize,
+    /// Compensated points x', y', z' (mm), u fastest, `nu * nv` of them.
     pub points: Vec<[f64; 3]>,
+    /// Unit outer normals at the points.
     pub normals: Vec<[f64; 3]>,
+    /// Signed offset applied along the normal at each point, mm.
     pub offsets: Vec<f64>,
+    /// Cutter-location points (mm): each point moved out by the tool radius along its
+    /// normal; present only when a tool radius was given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub cl: Option<Vec<[f64; 3]>>,
 }

@@ -1,4 +1,5 @@
-//! The CONTRACT answers of a gap diagnosis (motion and part) as JSON: gap before and after,
+//! The answers of a gap diagnosis (motion and part; openapi.yaml
+//! `POST /v1/machines/{machine}/gap-diagnosis`) as JSON: gap before and after,
 //! where, the effects with their parameters and scores, the verdict, the validation.
 
 use serde_json::{Map, Value, json};
@@ -24,7 +25,7 @@ fn columns_to_rows(cols: &[Vec<f64>]) -> Value {
     )
 }
 
-/// The CONTRACT answer of a motion diagnosis (plus `domain`, `axes`, `noise_mm`).
+/// The openapi.yaml answer of a motion diagnosis (plus `domain`, `axes`, `noise_mm`).
 pub fn motion_answer(axes: &[String], d: &MotionDiagnosis) -> Value {
     let mut out = json!({
         "domain": "motion",
@@ -51,7 +52,7 @@ pub fn motion_answer(axes: &[String], d: &MotionDiagnosis) -> Value {
     out
 }
 
-/// The CONTRACT answer of a part diagnosis (plus `domain`, `predicted_source`).
+/// The openapi.yaml answer of a part diagnosis (plus `domain`, `predicted_source`).
 pub fn part_answer(d: &PartDiagnosis, predicted_source: &str) -> Value {
     let mut out = json!({
         "domain": "part",

@@ -1,11 +1,11 @@
-//! The effects library (motion domain): one parametric model per CONTRACT effect name, each
+//! The effects library (motion domain): one parametric model per openapi.yaml effect name, each
 //! added to the simulation and re-simulated.
 
 use serde::{Deserialize, Serialize};
 
 use crate::gap::plant::{AxisPlant, play};
 
-/// CONTRACT effect names of the motion domain (and `none`).
+/// openapi.yaml effect names of the motion domain (and `none`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, PartialOrd, Ord)]
 #[serde(rename_all = "snake_case")]
 pub enum Effect {
@@ -39,7 +39,7 @@ impl Effect {
         Effect::ThermalDrift,
     ];
 
-    /// The CONTRACT name.
+    /// The name in openapi.yaml.
     pub fn name(self) -> &'static str {
         match self {
             Effect::None => "none",

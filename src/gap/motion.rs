@@ -182,8 +182,9 @@ fn check_block(
     Ok(n)
 }
 
-/// Diagnoses the sim-to-real gap of a motion block (CONTRACT "Sim-to-real gap diagnosis
-/// (motion)"). `axes` are the axis letters and `servo` their stored models, in column order.
+/// Diagnoses the sim-to-real gap of a motion block (openapi.yaml
+/// `POST /v1/machines/{machine}/gap-diagnosis`, domain `motion`). `axes` are the axis letters
+/// and `servo` their stored models, in column order.
 ///
 /// Each library effect is fitted by re-simulation on `folds − 1` contiguous folds and scored on
 /// the held-out fold: `score = 1 − Σ SSE_effect / Σ SSE_stored` over folds. The verdict is the
@@ -202,7 +203,7 @@ pub fn diagnose_motion(
     diagnose_motion_structured(axes, servo, &[], period_s, main, validation, opts)
 }
 
-/// As [`diagnose_motion`], with the machine's structural mode per axis (seed 003 eq. 10)
+/// As [`diagnose_motion`], with the machine's structural mode per axis (Zhang & Chen 2025 eq. 10)
 /// between motor and table (`structure[k]`, missing entries = rigid), as the contour
 /// prediction simulates it.
 pub fn diagnose_motion_structured(

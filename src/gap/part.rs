@@ -13,7 +13,7 @@ use crate::gap::effects::thermal_basis;
 use crate::gap::motion::{GapStats, noise_sigma};
 use crate::numeric::lsq::truncated_svd;
 
-/// Part-domain effect names (CONTRACT) and `none`.
+/// Part-domain effect names (openapi.yaml) and `none`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum PartEffect {
@@ -35,7 +35,7 @@ impl PartEffect {
         PartEffect::ProbePretravel,
     ];
 
-    /// CONTRACT name.
+    /// The name in openapi.yaml.
     pub fn name(self) -> &'static str {
         match self {
             PartEffect::None => "none",
@@ -212,7 +212,8 @@ fn check(field: &str, grid: &PartGrid, b: &PartBlock) -> Result<(), Error> {
     Ok(())
 }
 
-/// Diagnoses the part-domain gap (CONTRACT "Sim-to-real gap diagnosis (part)").
+/// Diagnoses the part-domain gap (openapi.yaml `POST /v1/machines/{machine}/gap-diagnosis` (domain
+/// `part`)).
 ///
 /// Residual `r = measured − predicted`; each effect is fitted by least squares on 4 of 5
 /// contiguous folds and scored on the fifth (`score = 1 − ΣSSE_eff/ΣSSE_none`); verdict = best

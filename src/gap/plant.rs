@@ -44,8 +44,8 @@ impl AxisPlant {
         })
     }
 
-    /// Adds the machine's structural mode between motor and table (seed 003 eq. 10), applied to
-    /// every simulated position as in the contour prediction.
+    /// Adds the machine's structural mode between motor and table (Zhang & Chen 2025 eq. 10),
+    /// applied to every simulated position as in the contour prediction.
     pub fn with_structure(mut self, structure: Option<StructuralMode>) -> Self {
         self.structure = structure;
         self

@@ -121,6 +121,10 @@ pub fn diagnose_motion_request(axes: &ServoAxes, req: &GapRequest) -> Result<Val
 /// A motion request checked: the block, the validation block, the period (s), the options.
 pub type MotionInputs = (MotionBlock, Option<MotionBlock>, f64, MotionOptions);
 
+/// Checks a motion-domain request against the machine's servo axes and turns it into
+/// [`MotionInputs`]: refuses part-domain fields, requires `period_s` in (0, 10] s and
+/// `commanded` and `measured` rows (mm) of the same shape, with no more columns than the
+/// machine has axes. Each error names the field to fix.
 pub fn motion_inputs(axes: &ServoAxes, req: &GapRequest) -> Result<MotionInputs, Error> {
     for (name, present) in [
         ("surface", req.surface.is_some()),

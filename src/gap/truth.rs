@@ -1,6 +1,6 @@
 //! Truth plants for the self-check, written independently of the diagnosis' plant: RK4 on the
-//! CONTRACT equations in absolute coordinates, smooth (tanh) Coulomb friction, and each effect
-//! drawn at realistic magnitudes — including effects outside the library.
+//! equations of openapi.yaml schema `Servo` in absolute coordinates, smooth (tanh) Coulomb
+//! friction, and each effect drawn at realistic magnitudes — including effects outside the library.
 
 use rand::{Rng, RngExt};
 

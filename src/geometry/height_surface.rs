@@ -134,7 +134,8 @@ impl HeightSurface {
     }
 
     /// The Python study's surfaces 1, 2, 3 (`tests/data/step/surfaces.json`: bounding
-    /// boxes 120x140x38, 135x175x68.28, 150x150x54.02 mm like the seed's Fig. 4). None otherwise.
+    /// boxes 120x140x38, 135x175x68.28, 150x150x54.02 mm like Zhang et al. 2023's Fig. 4). None
+    /// otherwise.
     pub fn reference(id: u32) -> Option<Self> {
         use std::f64::consts::TAU;
         let (lx, ly, scale, offset, terms) = match id {

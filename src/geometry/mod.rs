@@ -1,6 +1,6 @@
 //! Surface and tool-path geometry: cubic splines through points, analytic height surfaces,
-//! iso-parametric path sampling, exact step error of ball-end finishing (seed 000, eq. 1) and
-//! the step-error network's input features.
+//! iso-parametric path sampling, exact step error of ball-end finishing (Zhang et al. 2023 eq. 1)
+//! and the step-error network's input features.
 
 mod error;
 mod height_surface;

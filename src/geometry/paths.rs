@@ -30,7 +30,7 @@ pub struct PathPlan {
     /// CL points per path (overrides `cl_spacing_mm`).
     #[serde(default)]
     pub points_per_line: Option<usize>,
-    /// Points per CC curve, ends included (the seed's m; 20 in the study).
+    /// Points per CC curve, ends included (Zhang et al. 2023's m; 20 in the study).
     #[serde(default = "default_m")]
     pub cc_points: usize,
 }
@@ -126,8 +126,8 @@ impl PathPlan {
 /// at `x = x_j + (x_{j+1} - x_j) t`, `t = 0, 1/(m-1), .., 1`, and `CL = P + R n`.
 /// Order: line-major (`index = k * (pts - 1) + j`), as in the Python study.
 ///
-/// Reference: `tests/data/step/README.md` "Tool paths / samples" (the Python study); seed 000
-/// "Sample construction" (200 lines x 100 CL points).
+/// Reference: `tests/data/step/README.md` "Tool paths / samples" (the Python study); Zhang et al.
+/// 2023 "Sample construction" (200 lines x 100 CL points).
 pub fn height_surface_segments(
     surface: &HeightSurface,
     plan: &PathPlan,
@@ -168,8 +168,8 @@ pub fn height_surface_segments(
     Ok(out)
 }
 
-/// Segments of iso-parametric paths along the u direction of a nominal grid (CONTRACT
-/// surfaces: `nu x nv` points and unit outward normals, `k = iv * nu + iu`). Paths follow grid
+/// Segments of iso-parametric paths along the u direction of a nominal grid (the surfaces of
+/// openapi.yaml: `nu x nv` points and unit outward normals, `k = iv * nu + iu`). Paths follow grid
 /// rows `iv = 0, s, 2s, ..` with `s` the step-over in whole rows; along a row the points and
 /// normals are interpolated by not-a-knot cubic splines (uniform in u), CL points are placed at
 /// equal u steps and `CL = P + R n` with the interpolated normal renormalised.

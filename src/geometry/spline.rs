@@ -1,6 +1,6 @@
 //! Interpolating cubic spline through 3-D points (not-a-knot ends), the CC-curve model of the
-//! step-error computation (seed 000, "Geometry principle": the CC curve between two contact
-//! points, known by discrete points, is interpolated).
+//! step-error computation (Zhang et al. 2023, "Geometry principle": the CC curve between two
+//! contact points, known by discrete points, is interpolated).
 //!
 //! Written here (no crate): splines on 3-D points with reusable buffers, evaluated millions of
 //! times a second, are 150 lines; the interpolation crates allocate per call or are 1-D only.
@@ -12,7 +12,7 @@ use crate::numeric::tridiag::Tridiagonal;
 #[derive(Clone, Copy, Debug, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Parameterization {
-    /// `t_k = k / (m - 1)`: right for points sampled at equal parameter steps (the seed's
+    /// `t_k = k / (m - 1)`: right for points sampled at equal parameter steps (Zhang et al. 2023's
     /// iso-parametric samples).
     Uniform,
     /// `t_k` proportional to the cumulative chord length: right for unevenly spaced points.

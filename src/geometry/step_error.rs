@@ -1,4 +1,5 @@
-//! Exact step error of 3-axis ball-end finishing between two cutter locations (seed 000, eq. 1).
+//! Exact step error of 3-axis ball-end finishing between two cutter locations (Zhang et al. 2023
+//! eq. 1).
 
 use serde::{Deserialize, Serialize};
 
@@ -97,7 +98,7 @@ const TOL_BRENT: f64 = 1e-6;
 
 impl StepErrorSolver {
     /// A solver using `param` to place the CC points on the spline parameter axis
-    /// (`Uniform` for equal-parameter samples, as the seed's iso-parametric paths).
+    /// (`Uniform` for equal-parameter samples, as Zhang et al. 2023's iso-parametric paths).
     pub fn new(param: Parameterization) -> Self {
         StepErrorSolver {
             spline: CubicSpline3::new(),
@@ -117,7 +118,7 @@ impl StepErrorSolver {
         self
     }
 
-    /// Exact step error of one segment (seed 000, eq. 1):
+    /// Exact step error of one segment (Zhang et al. 2023 eq. 1):
     /// `e = |R - L|`, `L = |P_i^CL p^e x P_i^CL P_{i+1}^CL| / |P_i^CL P_{i+1}^CL|`, where the CC
     /// curve is the not-a-knot cubic spline through `cc` and `p^e` is its point of minimum
     /// distance to the CL line when the curve is convex, maximum when concave. Convexity is the
@@ -136,7 +137,7 @@ impl StepErrorSolver {
     /// included, are candidates too. Uniform knots with m >= 4 take the lane code
     /// (`step_error/lanes.rs`, one lane here, four in [`StepErrorSolver::solve_batch`]).
     ///
-    /// Units: mm in, mm out. Reference: seed 000 eq. (1) and Fig. 1.
+    /// Units: mm in, mm out. Reference: Zhang et al. 2023 eq. 1 and Fig. 1.
     /// Known bad cases: inflected segments (flagged; the middle decides), CC points so sparse
     /// that the spline misses the curve's shape, several equal extrema (one is returned).
     /// Errors: R <= 0, m < 3, non-finite points, `cl[0] == cl[1]`, |cl - cc| != R (> 0.1 %).

@@ -1,5 +1,5 @@
-//! Network inputs describing a step-error segment (seed 000, Table 1), in the global frame (the
-//! paper) or in a local frame of the segment (transfers across surfaces).
+//! Network inputs describing a step-error segment (Zhang et al. 2023 Table 1), in the global frame
+//! (the paper) or in a local frame of the segment (transfers across surfaces).
 
 use serde::{Deserialize, Serialize};
 
@@ -11,7 +11,8 @@ use crate::numeric::vec3::{add, cross, dot, normalize, scale, sub};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum FeatureFrame {
-    /// Machine coordinates, as the paper (Table 1): the network learns where the surface is.
+    /// Machine coordinates, as Zhang et al. 2023 (Table 1): the network learns where the surface
+    /// is.
     Global,
     /// Origin at the first CC point P_i, x along P_i -> P_{i+1}, z along the mean CL-CC normal
     /// made orthogonal to x, y = z x x: invariant to where the segment sits and how it turns.
@@ -34,13 +35,15 @@ pub struct StepFeatures {
     pub knot_distances: bool,
     /// Two outputs, the signed one-sided errors `R - L_min` and `L_max - R` (µm), both smooth in
     /// the inputs; the convexity rule (sign of the middle's normal curvature from second
-    /// differences) then picks one. One output (the step error itself, as the paper) otherwise.
+    /// differences) then picks one. One output (the step error itself, as Zhang et al. 2023)
+    /// otherwise.
     #[serde(default)]
     pub two_sided: bool,
 }
 
 impl StepFeatures {
-    /// The paper's inputs: 20 CC points, 2 CL points and R in machine coordinates (67 values).
+    /// Zhang et al. 2023's inputs: 20 CC points, 2 CL points and R in machine coordinates (67
+    /// values).
     pub fn paper() -> Self {
         StepFeatures {
             frame: FeatureFrame::Global,

@@ -180,7 +180,7 @@ const MAX_WINDOW: usize = 200_000;
 /// Computes the contour error of `actual` against `commanded` (columns per machine axis,
 /// equal lengths ≥ 1, axis order X, Y, Z[, A, C]) on a machine with kinematics `kin`.
 /// Tool tips and axes come from the forward kinematics (workpiece frame).
-/// Reference: seed 003 §4.2, eq. 11 (see module docs for the window).
+/// Reference: Zhang & Chen 2025 §4.2, eq. 11 (see module docs for the window).
 /// Bad cases: where the path passes over itself within the window (a hairpin narrower than
 /// twice the tracking error) the nearer pass is matched.
 pub fn contour_error(

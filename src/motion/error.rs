@@ -8,7 +8,7 @@ pub enum Error {
     /// A servo parameter is out of its physical range (non-finite, non-positive, kff outside 0..1).
     #[error("servo parameter '{field}' = {value} is invalid: {reason}")]
     InvalidServo {
-        /// Parameter name as in the CONTRACT ("kv", "kff", "kp_v", "ti_v", "tc").
+        /// Parameter name as in openapi.yaml schema `Servo` ("kv", "kff", "kp_v", "ti_v", "tc").
         field: &'static str,
         /// The offending value.
         value: f64,
@@ -37,22 +37,42 @@ pub enum Error {
     },
     /// A G/M code, word or keyword outside the supported subset (never skipped silently).
     #[error("line {line}: unsupported code {code}")]
-    UnsupportedCode { line: usize, code: String },
+    UnsupportedCode {
+        /// 1-based line of the program.
+        line: usize,
+        /// The code as written (e.g. `G41`, `M98`).
+        code: String,
+    },
     /// A malformed or geometrically impossible block (bad number, arc radius mismatch, ...).
     #[error("line {line}: {message}")]
-    Gcode { line: usize, message: String },
+    Gcode {
+        /// 1-based line of the program.
+        line: usize,
+        /// What is wrong with the block and how to fix it.
+        message: String,
+    },
     /// The machine definition cannot drive this program (missing axis, bad geometry, ...).
     #[error("machine definition: {0}")]
     InvalidMachine(String),
     /// A numeric argument of a core function is out of range.
     #[error("parameter {field}: {message}")]
-    InvalidParameter { field: String, message: String },
+    InvalidParameter {
+        /// Name of the argument (as the API names it).
+        field: String,
+        /// Its allowed range, as a sentence.
+        message: String,
+    },
     /// The program needs more interpolation periods than the caller allows.
     #[error(
         "the program needs {periods} interpolation periods, more than the limit of {limit}: \
          raise period_s or split the program"
     )]
-    TooManyPeriods { periods: u64, limit: usize },
+    TooManyPeriods {
+        /// Interpolation periods the program needs (duration / period_s).
+        periods: u64,
+        /// Most periods the caller allows.
+        limit: usize,
+    },
     /// The program contains no motion at all.
     #[error("the program contains no motion (no G0/G1/G2/G3 block moves an axis)")]
     EmptyProgram,

@@ -1,6 +1,6 @@
 //! Interpolator: program blocks → machine-axis command every interpolation period.
 //!
-//! Feed distribution (seed 003 §2.2, eqs. 2–7): each block has a path parameter `s` whose
+//! Feed distribution (Zhang & Chen 2025 §2.2, eqs. 2–7): each block has a path parameter `s` whose
 //! length is the tool-tip displacement `L_i` (eq. 2) when RTCP is on, else the extended
 //! displacement `ΔL = √(ΔX²+ΔY²+ΔZ²+ΔA²+ΔC²)` with the rotary terms in radians (eq. 3). The
 //! programmed F fixes the block time `T = L_i/F` (eq. 4; G93: `T = 1/F`), every axis moves
@@ -16,8 +16,8 @@
 //! carries through tangent junctions and drops at corners to the speed whose direction
 //! change per period stays within `max_accel·period` on every axis.
 //!
-//! Hand-written: no crate implements seed 003's RTCP feed distribution, and the S-curve planner
-//! must see the machine axes through the inverse kinematics.
+//! Hand-written: no crate implements Zhang & Chen 2025's RTCP feed distribution, and the S-curve
+//! planner must see the machine axes through the inverse kinematics.
 
 use super::error::Error;
 use super::gcode::{Block, Feed, Motion, Program};
@@ -482,8 +482,8 @@ mod tests {
         assert!(a <= 5000.0 * 2.01, "a {a}");
     }
 
-    /// Seed 003 eqs. 4–7: with RTCP the programmed F is the tool-tip speed; without RTCP it is
-    /// the speed in the extended displacement √(ΔX²+…+ΔA²+ΔC²) (rotary terms in radians).
+    /// Zhang & Chen 2025 eqs. 4–7: with RTCP the programmed F is the tool-tip speed; without RTCP
+    /// it is the speed in the extended displacement √(ΔX²+…+ΔA²+ΔC²) (rotary terms in radians).
     #[test]
     fn feed_distribution_follows_seed_equations() {
         let ax = json!({"kv": 30, "max_vel": 1e6, "max_accel": 1e7, "max_jerk": 1e10});

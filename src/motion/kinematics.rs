@@ -50,7 +50,9 @@ pub enum Kinematics {
 /// workpiece frame.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ToolPose {
+    /// Tool tip, mm, workpiece frame.
     pub tip: [f64; 3],
+    /// Unit tool axis, from the tip into the spindle, workpiece frame.
     pub axis: [f64; 3],
 }
 
@@ -76,8 +78,8 @@ impl Kinematics {
     /// Forward transform: machine axes `[X, Y, Z, A, C]` (mm, degrees; A and C ignored for
     /// `xyz`) → tool tip and tool axis in the workpiece frame.
     /// Formula: `p_w = T_C(C)⁻¹ T_A(A)⁻¹ (X, Y, Z − L)`, axis `= R_z(−C) R_x(−A) e_z`
-    /// = (sin A sin C, sin A cos C, cos A). Reference: seed 003 §2.1 eq. 1 (tool axis vector
-    /// from the rotary angles), with this crate's sign conventions (module docs).
+    /// = (sin A sin C, sin A cos C, cos A). Reference: Zhang & Chen 2025 §2.1 eq. 1 (tool axis
+    /// vector from the rotary angles), with this crate's sign conventions (module docs).
     pub fn forward(&self, q: &[f64; 5]) -> ToolPose {
         match self {
             Kinematics::Xyz => ToolPose {

@@ -1,6 +1,6 @@
-//! Motion core (seed 003): G-code reader, RTCP interpolation with a jerk-limited feed
-//! profile, machine kinematics, the servo cascade per axis (E's `servo`), physical drive
-//! parameters, and contour error.
+//! Motion core (Zhang & Chen 2025): G-code reader, RTCP interpolation with a jerk-limited feed
+//! profile, machine kinematics, the servo cascade per axis ([`servo`]: the cascade of openapi.yaml
+//! schema `Servo`, Zhang & Chen 2025 §3), physical drive parameters, and contour error.
 pub mod axes;
 pub mod contour;
 pub mod error;

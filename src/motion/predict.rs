@@ -1,7 +1,7 @@
 //! The whole contour-error prediction: G-code → interpolation → servo → contour error.
 //!
-//! Reference: seed 003 (§2 interpolation with RTCP, §3 per-axis servo feed model, §4 contour
-//! error by cubic spline and windowed nearest point).
+//! Reference: Zhang & Chen 2025 (§2 interpolation with RTCP, §3 per-axis servo feed model, §4
+//! contour error by cubic spline and windowed nearest point).
 
 use super::contour::{ContourReport, contour_error};
 use super::error::Error;
@@ -17,12 +17,13 @@ pub struct ContourPrediction {
     pub commanded: Trajectory,
     /// Simulated machine-axis positions, one column per axis (mm / degrees).
     pub actual: Vec<Vec<f64>>,
+    /// Contour error of `actual` against the commanded path, per period and summarised.
     pub report: ContourReport,
 }
 
-/// Simulates every axis of `machine` for an interpolated command: the CONTRACT cascade
-/// (exact discretization, [`simulate_axis`]) followed, where the machine has one, by the
-/// structural mode of seed 003 eq. 10 ([`super::physical::StructuralMode::filter`]).
+/// Simulates every axis of `machine` for an interpolated command: the servo cascade of openapi.yaml
+/// schema `Servo` (exact discretization, [`simulate_axis`]) followed, where the machine has one, by
+/// the structural mode of Zhang & Chen 2025 eq. 10 ([`super::physical::StructuralMode::filter`]).
 pub fn simulate_machine(machine: &Machine, commanded: &Trajectory) -> Result<Vec<Vec<f64>>, Error> {
     machine
         .axes
@@ -243,7 +244,7 @@ mod tests {
     /// RTCP + an ideal servo (kff = 1, ideal inner loops) keeps the tool tip on the
     /// programmed workpiece path (< 0.1 µm), through a line and an arc with big rotations.
     /// The same machine-axis end points interpolated without RTCP leave the path by far more
-    /// (the non-linear error of seed 003 §2.2), so the check can fail.
+    /// (the non-linear error of Zhang & Chen 2025 §2.2), so the check can fail.
     #[test]
     fn rtcp_with_ideal_servo_keeps_tip_on_programmed_path() {
         let m = five_axis(1.0, 40.0);

@@ -8,12 +8,19 @@
 /// for `τ ∈ [0, dur]`, starting at global time `t0` (s) in block `block`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Piece {
+    /// Global start time, s.
     pub t0: f64,
+    /// Duration, s.
     pub dur: f64,
+    /// Path parameter at the start, mm along the block.
     pub s0: f64,
+    /// Speed at the start, mm/s.
     pub v0: f64,
+    /// Acceleration at the start, mm/s².
     pub a0: f64,
+    /// Constant jerk over the piece, mm/s³.
     pub j: f64,
+    /// Index of the block this piece belongs to.
     pub block: usize,
 }
 
@@ -119,13 +126,15 @@ fn push_ramp(
 pub struct BlockLimits {
     /// Path length, mm.
     pub len: f64,
-    /// Entry and exit speeds, mm/s.
+    /// Entry speed, mm/s.
     pub v0: f64,
+    /// Exit speed, mm/s.
     pub v1: f64,
     /// Cruise cap ≥ max(v0, v1), mm/s.
     pub vcap: f64,
-    /// Acceleration cap, mm/s², and jerk cap, mm/s³.
+    /// Acceleration cap, mm/s².
     pub a: f64,
+    /// Jerk cap, mm/s³.
     pub j: f64,
 }
 

@@ -57,12 +57,18 @@ pub enum Motion {
     /// plane components matter). `sweep_rad` > 0 turns counter-clockwise seen from the
     /// plane normal (G3), < 0 clockwise (G2); a full circle has |sweep_rad| = 2π.
     Arc {
+        /// The arc plane (G17 XY, G18 ZX, G19 YZ).
         plane: Plane,
+        /// Centre, mm, program coordinates.
         center: [f64; 3],
+        /// Signed swept angle, rad: > 0 counter-clockwise (G3), < 0 clockwise (G2).
         sweep_rad: f64,
     },
     /// G4: stand still for `seconds`.
-    Dwell { seconds: f64 },
+    Dwell {
+        /// Dwell time, s.
+        seconds: f64,
+    },
 }
 
 /// One executable block after modal state is resolved.
@@ -70,9 +76,13 @@ pub enum Motion {
 pub struct Block {
     /// 1-based source line.
     pub line: usize,
+    /// What the block does: line, arc or dwell.
     pub motion: Motion,
+    /// Position at the start of the block.
     pub start: Pose,
+    /// Programmed position at the end of the block.
     pub end: Pose,
+    /// Feed rate in force (G94 mm/min or G93 inverse time).
     pub feed: Feed,
     /// RTCP (G43.4 / TRAORI) active: XYZ are tool-tip coordinates in the workpiece frame.
     pub rtcp: bool,
@@ -81,6 +91,7 @@ pub struct Block {
 /// A parsed program: the executable blocks in order.
 #[derive(Clone, Debug, PartialEq, Default)]
 pub struct Program {
+    /// Executable blocks in program order.
     pub blocks: Vec<Block>,
     /// First line that programs the A axis, if any.
     pub first_a_line: Option<usize>,
@@ -230,7 +241,7 @@ impl Block {
 
     /// Length of the block's path in program XYZ (mm): chord for lines, helix length
     /// √((r̄·|sweep|)² + Δh²) for arcs with mean radius r̄, 0 for dwells.
-    /// Reference: seed 003 eq. 2 (L_i, tool-tip displacement of a block).
+    /// Reference: Zhang & Chen 2025 eq. 2 (L_i, tool-tip displacement of a block).
     pub fn xyz_length(&self) -> f64 {
         let (s, e) = (&self.start.xyz, &self.end.xyz);
         match self.motion {

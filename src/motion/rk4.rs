@@ -6,8 +6,8 @@
 
 /// Integrates `d(state)/dt = deriv(state, r(t), dr/dt)` with RK4, `substeps` steps per period.
 ///
-/// The command is read as CONTRACT "Sim-to-real gap diagnosis" says: sample `i` at
-/// `t = i·period_s`, straight lines between samples (so `dr/dt` is the segment's slope), and the
+/// The command is read as openapi.yaml `POST /v1/machines/{machine}/gap-diagnosis` says: sample `i`
+/// at `t = i·period_s`, straight lines between samples (so `dr/dt` is the segment's slope), and the
 /// axis starts at rest at `command[0]` (state `[command[0], 0, 0, 0]`: position mm, velocity
 /// mm/s, acceleration mm/s², velocity-loop integral mm). Returns the position (state 0) at every
 /// sample, `command.len()` values (empty for an empty command).

@@ -1,4 +1,4 @@
-//! The CONTRACT "Servo model": a normalized three-loop cascade per axis, simulated by exact
+//! The openapi.yaml schema `Servo`: a normalized three-loop cascade per axis, simulated by exact
 //! discretization for a first-order-hold (piecewise-linear) command.
 //!
 //! Written here (no crate): the cascade is a 1–4 state LTI system; its exact discretization is
@@ -9,7 +9,8 @@ use serde::{Deserialize, Serialize};
 
 use crate::motion::Error;
 
-/// One axis of the CONTRACT cascade (units: 1/s for gains, s for time constants).
+/// One axis of the servo cascade of openapi.yaml schema `Servo` (units: 1/s for gains, s for time
+/// constants).
 ///
 /// ```text
 /// v_ref = kff·dr/dt + kv·(r − x)                 position loop (P) + velocity feed-forward
@@ -19,7 +20,7 @@ use crate::motion::Error;
 /// ```
 /// `kp_v = None`: ideal velocity loop (`dx/dt = v_ref`); `ti_v = None`: no integral action;
 /// `tc = None`: ideal current loop (`a = a_cmd`).
-/// Reference: CONTRACT.md "Servo model"; seed 003 section 3 (three-loop feed axis).
+/// Reference: openapi.yaml schema `Servo`; Zhang & Chen 2025 §3 (three-loop feed axis).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ServoAxis {
     /// Position-loop gain, 1/s.
@@ -294,13 +295,13 @@ impl DiscreteServo {
     }
 }
 
-/// Exact discretization of the CONTRACT cascade for a piecewise-linear (first-order-hold)
-/// command sampled every `period_s`; axis at rest at `command[0]` (zero velocity,
-/// acceleration and integrator). Returns actual positions, mm, one per command sample.
+/// Exact discretization of the servo cascade of openapi.yaml schema `Servo` for a piecewise-linear
+/// (first-order-hold) command sampled every `period_s`; axis at rest at `command[0]` (zero
+/// velocity, acceleration and integrator). Returns actual positions, mm, one per command sample.
 ///
 /// Formula: see [`DiscreteServo`]; error is rounding only (< 1e-12 mm for |r| < 1e3 mm over
 /// 1e6 samples in our tests against RK4 with 1/200 of the period).
-/// Reference: CONTRACT.md "Servo model"; seed 003 section 3.
+/// Reference: openapi.yaml schema `Servo`; Zhang & Chen 2025 §3.
 /// Bad cases: unstable parameter sets are rejected (`Error::UnstableServo`).
 pub fn simulate_axis(axis: &ServoAxis, command: &[f64], period_s: f64) -> Result<Vec<f64>, Error> {
     if command.is_empty() {
@@ -316,8 +317,8 @@ pub fn simulate_axis(axis: &ServoAxis, command: &[f64], period_s: f64) -> Result
 mod tests {
     use super::*;
 
-    /// Slow obvious reference: RK4 on the CONTRACT equations in absolute coordinates,
-    /// `sub` steps per period, FOH command.
+    /// Slow obvious reference: RK4 on the equations of openapi.yaml schema `Servo` in absolute
+    /// coordinates, `sub` steps per period, FOH command.
     fn rk4_reference(axis: &ServoAxis, command: &[f64], period: f64, sub: usize) -> Vec<f64> {
         // state: x, v, a, z
         let deriv = |st: [f64; 4], r: f64, s: f64| -> [f64; 4] {

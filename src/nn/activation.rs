@@ -6,9 +6,9 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Activation {
-    /// `max(0, z)` (seed 000, eq. 3).
+    /// `max(0, z)` (Zhang et al. 2023 eq. 3).
     Relu,
-    /// Logistic `1 / (1 + e^-z)` (seeds 001/004).
+    /// Logistic `1 / (1 + e^-z)` (Xiang et al. 2019 and Wang, Dai & Hong).
     Sigmoid,
     /// `z` (regression output layers).
     Identity,
@@ -17,7 +17,7 @@ pub enum Activation {
 impl Activation {
     /// The activation `a = f(z)` of a pre-activation `z` (dimensionless).
     ///
-    /// Reference: seed 000 eq. (3) for ReLU. Sigmoid saturates (derivative ~0) for |z| > 30.
+    /// Reference: Zhang et al. 2023 eq. 3 for ReLU. Sigmoid saturates (derivative ~0) for |z| > 30.
     #[inline]
     pub fn apply(self, z: f64) -> f64 {
         match self {
@@ -30,7 +30,8 @@ impl Activation {
     /// The derivative `f'(z)` written in terms of the output `a = f(z)`, which is what
     /// back-propagation keeps: ReLU `1[a > 0]`, sigmoid `a (1 - a)`, identity `1`.
     ///
-    /// Reference: standard back-propagation (seed 000 eqs. 5-6). ReLU at exactly 0 takes 0.
+    /// Reference: standard back-propagation (Zhang et al. 2023 eqs. 5–6). ReLU at exactly 0 takes
+    /// 0.
     #[inline]
     pub fn derivative_from_output(self, a: f64) -> f64 {
         match self {

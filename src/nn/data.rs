@@ -5,8 +5,9 @@ use rand::rngs::Xoshiro256PlusPlus;
 use rand::seq::SliceRandom;
 
 /// Splits `0..n` at random into (first, second) index sets, `second` holding
-/// `round(n * second_fraction)` indices (the 70/30 split of seed 000 is `second_fraction = 0.3`).
-/// Deterministic for a given `seed`. Fractions outside [0, 1] are clamped.
+/// `round(n * second_fraction)` indices (the 70/30 split of Zhang et al. 2023 is
+/// `second_fraction = 0.3`). Deterministic for a given `seed`. Fractions outside [0, 1] are
+/// clamped.
 pub fn split_indices(n: usize, second_fraction: f64, seed: u64) -> (Vec<usize>, Vec<usize>) {
     let mut idx: Vec<usize> = (0..n).collect();
     let mut rng = Xoshiro256PlusPlus::seed_from_u64(seed);

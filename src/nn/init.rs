@@ -14,8 +14,8 @@ pub enum Init {
     He,
     /// Glorot (Xavier) normal: `w ~ N(0, 2 / (fan_in + fan_out))`, biases 0. For sigmoid.
     Xavier,
-    /// The seed's choice: `w ~ N(0, 1)` and biases `U(-1/sqrt(fan_in), 1/sqrt(fan_in))`
-    /// (seed 000 Step 4, eqs. 10-11; the paper leaves the uniform bounds c, d open).
+    /// Zhang et al. 2023's choice: `w ~ N(0, 1)` and biases `U(-1/sqrt(fan_in), 1/sqrt(fan_in))`
+    /// (Zhang et al. 2023 Step 4, eqs. 10–11; the paper leaves the uniform bounds c, d open).
     /// Badly scaled for anything but tiny layers: activations grow like sqrt(fan_in).
     StandardNormal,
 }
@@ -23,7 +23,7 @@ pub enum Init {
 impl Init {
     /// Draws a `fan_out x fan_in` weight matrix and a bias vector.
     ///
-    /// Reference: He et al. 2015; Glorot & Bengio 2010; seed 000 eqs. (10)-(11).
+    /// Reference: He et al. 2015; Glorot & Bengio 2010; Zhang et al. 2023 eqs. 10–11.
     pub(crate) fn draw(
         self,
         fan_in: usize,

@@ -13,7 +13,7 @@ use crate::numeric::parallel;
 /// Samples per forward block: keeps every layer's block in L1/L2 while letting gemm amortise.
 const BLOCK: usize = 256;
 
-/// One fully connected layer: `a = f(W x + b)` (seed 000, eqs. 2-3).
+/// One fully connected layer: `a = f(W x + b)` (Zhang et al. 2023 eqs. 2–3).
 #[derive(Clone, Debug, PartialEq)]
 pub(crate) struct Dense {
     /// Weights, `out x in`.
@@ -34,9 +34,9 @@ impl Mlp {
     /// Builds a network with layer sizes `sizes` (input first, output last), `hidden` on every
     /// hidden layer and `output` on the last one, weights drawn by `init` from `seed`.
     ///
-    /// Example: the seed-000 step-error network is `&[62, 28, 20, 1]`, ReLU, Identity; the
-    /// volumetric network of seeds 001/004 is `&[3, 8, 3]`, Sigmoid, Identity.
-    /// Errors: fewer than 2 sizes or a size of 0.
+    /// Example: the step-error network of Zhang et al. 2023 is `&[62, 28, 20, 1]`, ReLU, Identity;
+    /// the volumetric network of Xiang et al. 2019 and Wang, Dai & Hong is `&[3, 8, 3]`, Sigmoid,
+    /// Identity. Errors: fewer than 2 sizes or a size of 0.
     pub fn new(
         sizes: &[usize],
         hidden: Activation,
@@ -102,7 +102,7 @@ impl Mlp {
     /// Forward pass of `n` samples (row-major `n x n_inputs`) to row-major `n x n_outputs`,
     /// on the calling thread. No dropout (inverted dropout needs no rescaling at inference).
     ///
-    /// Reference: seed 000 eq. (12) (weighted sum in matrix form) and eq. (3).
+    /// Reference: Zhang et al. 2023 eq. 12 (weighted sum in matrix form) and eq. 3.
     /// Errors: a length that is not a multiple of `n_inputs`, non-finite inputs.
     pub fn predict(&self, x: &[f64]) -> Result<Vec<f64>> {
         let n = self.check_input(x)?;

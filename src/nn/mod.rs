@@ -1,7 +1,7 @@
 //! Small dense neural networks (multi-layer perceptrons) on nalgebra: layers, activations,
 //! initialisation, z-score scaling, dropout, SGD-momentum / Adam, early stopping, a compact
-//! binary file format. Used by the step-error network (seed 000) and the volumetric maps
-//! (seeds 001, 004).
+//! binary file format. Used by the step-error network (Zhang et al. 2023) and the volumetric maps
+//! (Xiang et al. 2019 and Wang, Dai & Hong).
 //!
 //! Written here rather than taken from a crate: candle lacks SGD momentum, burn takes minutes
 //! to build, and the networks are tiny (tens of neurons), so a few hundred lines suffice.

@@ -1,4 +1,4 @@
-//! Gradient-descent optimisers: SGD with momentum (seed 000 eq. 14) and Adam.
+//! Gradient-descent optimisers: SGD with momentum (Zhang et al. 2023 eq. 14) and Adam.
 
 use serde::{Deserialize, Serialize};
 
@@ -8,7 +8,7 @@ use super::error::{Error, Result};
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Optimizer {
-    /// SGD with momentum, seed 000 eq. (14): `v <- beta v - eta g`, `w <- w + v`.
+    /// SGD with momentum, Zhang et al. 2023 eq. 14: `v <- beta v - eta g`, `w <- w + v`.
     Sgd {
         /// Learning rate eta.
         lr: f64,
@@ -85,7 +85,7 @@ impl Optimizer {
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum LrSchedule {
-    /// The base rate throughout (the seed's setting).
+    /// The base rate throughout (Zhang et al. 2023's setting).
     Constant,
     /// Cosine decay from the base rate to `base * final_factor` at the last epoch.
     Cosine {

@@ -9,8 +9,8 @@ use super::scaler::ZScore;
 use super::train::{EpochStats, TrainConfig, TrainReport, train};
 use crate::numeric::parallel;
 
-/// An [`Mlp`] wrapped with z-score scalers on inputs and outputs (seed 000 eq. 7), so callers
-/// work in physical units. The scalers are fitted once on the first training set and kept
+/// An [`Mlp`] wrapped with z-score scalers on inputs and outputs (Zhang et al. 2023 eq. 7), so
+/// callers work in physical units. The scalers are fitted once on the first training set and kept
 /// when fine-tuning (a fine-tuned model reads inputs exactly as its base did).
 #[derive(Clone, Debug, PartialEq)]
 pub struct Regressor {
@@ -100,7 +100,7 @@ impl Regressor {
     /// Predicts row-major `n x n_outputs` in physical units from row-major `n x n_inputs`, on
     /// the calling thread: inputs z-scored in f64, the network in f32 (AVX2+FMA when the CPU
     /// has them; see the kernel's notes on precision: ~1e-6 relative to the output scale),
-    /// outputs unscaled in f64. Reference: seed 000 eqs. (2), (3), (7).
+    /// outputs unscaled in f64. Reference: Zhang et al. 2023 eqs. 2, 3 and 7.
     /// Errors: wrong length, non-finite inputs.
     pub fn predict(&self, x: &[f64]) -> Result<Vec<f64>> {
         let n = self.mlp.rows(x)?;

@@ -1,11 +1,11 @@
-//! Z-score normalisation (seed 000, eq. 7).
+//! Z-score normalisation (Zhang et al. 2023 eq. 7).
 
 use super::error::{Error, Result, check_finite};
 
 /// Per-column z-score scaler: `x_scaled = (x - mu) / S` with the sample standard deviation
 /// `S = sqrt(sum (x - mu)^2 / (n - 1))`.
 ///
-/// Reference: seed 000, eq. (7). Known bad case: a constant column (S = 0, e.g. a fixed tool
+/// Reference: Zhang et al. 2023 eq. 7. Known bad case: a constant column (S = 0, e.g. a fixed tool
 /// radius) would divide by zero; its S is set to 1 so the column just becomes 0.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ZScore {

@@ -17,7 +17,7 @@ pub struct TrainConfig {
     pub epochs: usize,
     /// Samples per gradient step; 0 means the full batch (batch gradient descent).
     pub batch_size: usize,
-    /// Probability of dropping a hidden neuron during training, in [0, 1) (seed 000 eq. 13
+    /// Probability of dropping a hidden neuron during training, in [0, 1) (Zhang et al. 2023 eq. 13
     /// uses the keep probability p = 0.5, i.e. dropout 0.5). Inverted dropout: kept
     /// activations are scaled by 1/(1 - dropout), so inference needs no rescaling.
     pub dropout: f64,
@@ -49,7 +49,7 @@ impl Default for TrainConfig {
 }
 
 impl TrainConfig {
-    /// The seed paper's settings (seed 000, "Network parameter determination"): SGD with
+    /// The paper's settings (Zhang et al. 2023, "Network parameter determination"): SGD with
     /// momentum, eta = 1e-5, beta = 0.8, dropout 0.5, 2000 epochs. The paper gives no batch
     /// size; 64 as in the Python study. Pair with [`super::Init::StandardNormal`] weights.
     /// In practice this does not converge (see the step-error tests).
@@ -131,8 +131,8 @@ pub struct TrainReport {
 }
 
 /// Trains `mlp` in place on row-major `x` (`n x n_inputs`) and `y` (`n x n_outputs`) with
-/// mean-squared-error loss (seed 000 eq. 4), back-propagation (eqs. 5-6), dropout on hidden
-/// layers (eq. 13) and the configured optimiser (eq. 14 for SGD-momentum).
+/// mean-squared-error loss (Zhang et al. 2023 eq. 4), back-propagation (eqs. 5–6), dropout on
+/// hidden layers (eq. 13) and the configured optimiser (eq. 14 for SGD-momentum).
 ///
 /// `validation` is an optional held-out `(x, y)` for early stopping and best-epoch restore.
 /// `on_epoch` is called after every epoch; returning `false` stops training (cancellation).

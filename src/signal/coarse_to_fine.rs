@@ -1,16 +1,16 @@
 //! The coarse-to-fine decomposition of a machining error into systematic and random parts
-//! (paper 002 section 2.3.4), with the refinement stage that makes it reach the paper's
+//! (Chen et al. 2024 §2.3.4), with the refinement stage that makes it reach the paper's
 //! accuracy.
 //!
-//! Stages 1-4 are the paper's: VMD → screening → X1; EMD(X1) → screening against the
+//! Stages 1-4 are Chen et al. 2024's: VMD → screening → X1; EMD(X1) → screening against the
 //! measured error → X2; wavelet soft-threshold of every weak component → X3; X4 = X2 + X3.
-//! Run as published (REPORT §1) they fall short of the paper's Table 3 for three reasons:
+//! Run as published (peer study §1) they fall short of the paper's Table 3 for three reasons:
 //! 1. every kept component keeps all the noise inside its band: a VMD mode at α = 2000 is a
 //!    ~1/√α wide Lorentzian and passes ~0.19σ of white noise, and no later stage touches X2;
 //! 2. EMD of X1 often splits a systematic sinusoid into a strong IMF and a weakly correlated
 //!    "mode-mixing" IMF, which is sent to the weak path ...
 //! 3. ... where the universal soft threshold at the maximum level shrinks every coefficient
-//!    of the bands that carry it by λ (REPORT §3: db4 level 8 mean abs 0.0034 mm vs level 4
+//!    of the bands that carry it by λ (peer study §3: db4 level 8 mean abs 0.0034 mm vs level 4
 //!    0.0010 mm), and the mirror extension flattens the ends (17/20 worst errors at an end).
 //!
 //! The fix (stage 5, `refine`, on by default): the systematic part is re-estimated from the
@@ -20,7 +20,7 @@
 //! least-squares smoother of the rest whose only parameter is chosen by GCV (no truth), with
 //! natural ends; with the lines removed GCV can smooth the rest harder. H is kept only where
 //! Mallows' Cp says it helps. Stage 3 uses the "noise" level rule instead of the maximum level.
-//! With `refine: false` the result is X4 (the paper's pipeline with the level rule).
+//! With `refine: false` the result is X4 (Chen et al. 2024's pipeline with the level rule).
 
 use super::carrier::{Carrier, strongest_line};
 use super::emd::{EmdParams, emd};
@@ -38,7 +38,9 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(untagged)]
 pub enum LevelChoice {
+    /// This decomposition level (capped at the PyWavelets maximum for the signal length).
     Fixed(usize),
+    /// A level chosen from the signal by the rule.
     Rule(LevelRule),
 }
 
@@ -64,12 +66,15 @@ impl LevelChoice {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct CoarseToFineParams {
+    /// Stage 1: VMD parameters (penalty α, number of modes K, ...).
     pub vmd: VmdParams,
+    /// Stage 2: EMD parameters of the sifting of X1.
     pub emd: EmdParams,
-    /// Screening threshold on |r| (paper: 0.3).
+    /// Screening threshold on |r| (Chen et al. 2024: 0.3).
     pub threshold: f64,
-    /// Wavelet for stage 3 (paper: Daubechies; default db4).
+    /// Wavelet for stage 3 (Chen et al. 2024: Daubechies; default db4).
     pub wavelet: String,
+    /// Decomposition level of stage 3 (default the `"noise"` rule).
     pub wavelet_level: LevelChoice,
     /// Stage 5 (see the module doc). Default true.
     pub refine: bool,
@@ -81,8 +86,9 @@ pub struct CoarseToFineParams {
     pub k_max: usize,
     /// How a grid is read (only with a grid): `2d` (default), `serpentine`, `row_major`.
     pub order: Order,
-    /// Grid shape for a stateless request (a measurement's comes from its surface).
+    /// Grid points along u, for a stateless request (a measurement's comes from its surface).
     pub nu: Option<usize>,
+    /// Grid points along v (see `nu`).
     pub nv: Option<usize>,
     /// Include every stage's arrays (VMD modes, X1..X4) in `components`.
     pub full_components: bool,
@@ -136,34 +142,50 @@ impl CoarseToFineParams {
 /// What each stage found (the arrays only when asked for).
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct CoarseToFineResult {
+    /// The systematic part, mm, one value per sample (stage 5's L + H, or X4 without
+    /// `refine`); moved out into the `Decomposition`, never serialised here.
     #[serde(skip)]
     pub systematic: Vec<f64>,
+    /// Number of VMD modes K used (given, or chosen by `"K": "auto"`).
     pub k: usize,
-    /// VMD centre frequencies (cycles/sample), r against the measured error, kept mask.
+    /// VMD centre frequencies, cycles/sample, one per mode.
     pub vmd_omega: Vec<f64>,
+    /// Correlation coefficient r of each VMD mode against the measured error.
     pub vmd_corr: Vec<f64>,
+    /// Kept mask of the VMD modes: |r| ≥ `threshold` (the strong ones, summed into X1).
     pub vmd_strong: Vec<bool>,
+    /// ADMM iterations the VMD took.
     pub vmd_iterations: usize,
-    /// EMD(X1) components (IMFs then residue): r against the measured error, kept mask.
+    /// Correlation r of each EMD(X1) component (IMFs then residue) against the measured
+    /// error.
     pub emd_corr: Vec<f64>,
+    /// Kept mask of the EMD(X1) components (the strong ones, summed into X2).
     pub emd_strong: Vec<bool>,
+    /// Wavelet decomposition level used by stage 3.
     pub wavelet_level: usize,
-    /// Noise estimate σ̂ (mm) and threshold λ of stage 3.
+    /// Noise estimate σ̂ of stage 3, mm.
     pub wavelet_sigma: f64,
+    /// Soft threshold λ of stage 3, mm.
     pub wavelet_lambda: f64,
     /// Stage-5 smoother, and the VMD modes added back as narrow-band systematic error.
     pub refine: Option<Smoothed>,
+    /// Indices of the strong VMD modes added back as narrow-band systematic error (stage 5).
     pub narrow_band_modes: Vec<usize>,
     /// The carriers refitted from those modes (frequency, envelope degrees of freedom).
     pub narrow_band: Vec<NarrowBand>,
+    /// Stage 1: sum of the strong VMD modes, mm.
     #[serde(skip)]
     pub x1: Vec<f64>,
+    /// Stage 2: sum of the strong EMD(X1) components, mm.
     #[serde(skip)]
     pub x2: Vec<f64>,
+    /// Stage 3: wavelet soft-threshold of every weak component, mm.
     #[serde(skip)]
     pub x3: Vec<f64>,
+    /// Stage 4: X2 + X3, the published pipeline's systematic part, mm.
     #[serde(skip)]
     pub x4: Vec<f64>,
+    /// The VMD modes, mm, one vector per mode.
     #[serde(skip)]
     pub vmd_modes: Vec<Vec<f64>>,
 }
@@ -181,11 +203,11 @@ pub fn noise_sigma(x: &[f64]) -> f64 {
 /// The coarse-to-fine decomposition of a 1-D machining error `x` (mm): returns the
 /// systematic part and what each stage found; random = x − systematic.
 ///
-/// Formula: stages 1-4 of paper 002 §2.3.4 (eqs. 17-22); stage 5 as in the module doc:
+/// Formula: stages 1-4 of Chen et al. 2024 §2.3.4 (eqs. 17–22); stage 5 as in the module doc:
 /// systematic = H + S_λ(x − H), H the carriers of [`narrow_band_part`] (empty unless they
 /// lower Mallows' Cp), S_λ the GCV Whittaker smoother.
 /// Known bad cases: fewer than 16 samples (error); with a noise level comparable to the
-/// systematic error the screening keeps noise modes (REPORT section 2); stage 5 is then what
+/// systematic error the screening keeps noise modes (peer study §2); stage 5 is then what
 /// helps.
 pub fn coarse_to_fine(
     x: &[f64],
@@ -263,8 +285,9 @@ pub fn coarse_to_fine(
 pub struct NarrowBand {
     /// The strong VMD mode whose spectral line it is.
     pub mode: usize,
-    /// Carrier frequency (cycles/sample) and envelope degrees of freedom.
+    /// Carrier frequency, cycles/sample.
     pub frequency: f64,
+    /// Effective degrees of freedom of the carrier's slowly varying envelope.
     pub edf: f64,
 }
 

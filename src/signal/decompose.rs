@@ -13,15 +13,19 @@ use super::wavelet::{Wavelet, denoise};
 use super::whittaker::Smoothed;
 use serde::{Deserialize, Serialize};
 
-/// Decomposition method (CONTRACT "Decomposition"). `coarse_to_fine` is the default; the
-/// others are the single-method baselines of the paper's Table 3.
+/// Decomposition method (openapi.yaml `POST /v1/decompose`). `coarse_to_fine` is the default; the
+/// others are the single-method baselines of Chen et al. 2024's Table 3.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Method {
+    /// The five-stage pipeline of [`coarse_to_fine()`] (VMD, EMD, wavelet, refinement).
     #[default]
     CoarseToFine,
+    /// VMD alone: the modes whose |r| against the signal passes the threshold.
     Vmd,
+    /// EMD alone: the IMFs and residue whose |r| passes the threshold.
     Emd,
+    /// Wavelet soft-threshold denoising alone.
     Wavelet,
 }
 
@@ -44,10 +48,15 @@ pub type DecomposeParams = CoarseToFineParams;
 /// Arrays of a full-components answer.
 #[derive(Clone, Debug, Default, Serialize)]
 pub struct StageArrays {
+    /// The VMD modes, mm, one vector per mode.
     pub vmd_modes: Vec<Vec<f64>>,
+    /// Stage 1: sum of the strong VMD modes, mm (coarse-to-fine only).
     pub x1: Vec<f64>,
+    /// Stage 2: sum of the strong EMD(X1) components, mm (coarse-to-fine only).
     pub x2: Vec<f64>,
+    /// Stage 3: wavelet soft-threshold of the weak components, mm (coarse-to-fine only).
     pub x3: Vec<f64>,
+    /// Stage 4: X2 + X3, mm (coarse-to-fine only).
     pub x4: Vec<f64>,
 }
 
@@ -57,20 +66,28 @@ pub struct Components {
     /// The order actually used (`2d`, `serpentine`, `row_major`) when a grid was given.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub order: Option<Order>,
+    /// Grid shape `[nu, nv]` when the signal was a grid.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub grid: Option<[usize; 2]>,
+    /// What each stage found (method `coarse_to_fine`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub stages: Option<CoarseToFineResult>,
+    /// Correlation r of each component against the signal (methods `vmd`, `emd`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub corr: Option<Vec<f64>>,
+    /// Kept mask of the components, |r| ≥ threshold (methods `vmd`, `emd`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub strong: Option<Vec<bool>>,
+    /// VMD centre frequencies, cycles/sample (method `vmd`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub omega: Option<Vec<f64>>,
+    /// Decomposition level used (method `wavelet`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub wavelet_level: Option<usize>,
+    /// Noise estimate σ̂, mm (method `wavelet`).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub sigma: Option<f64>,
+    /// Every stage's arrays, when `full_components` was asked for.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub arrays: Option<StageArrays>,
 }
@@ -79,17 +96,21 @@ pub struct Components {
 /// the difference, so the identity holds to rounding, ≤ 1e-15 relative).
 #[derive(Clone, Debug, Serialize)]
 pub struct Decomposition {
+    /// The method that produced it.
     pub method: Method,
+    /// Systematic (compensable) part, mm, in the input's sample (or grid) order.
     pub systematic: Vec<f64>,
+    /// Random part, mm: signal − systematic.
     pub random: Vec<f64>,
+    /// What the stages found.
     pub components: Components,
     /// Probe flyers found (sample or grid indices k, ascending): left out of the systematic
     /// part, which there comes from their neighbours; their whole deviation is in `random`
-    /// ([`super::flyers`], CONTRACT v1.1 "Probe flyers").
+    /// ([`super::flyers`], openapi.yaml measurement upload and decomposition `outliers`).
     pub outliers: Vec<usize>,
 }
 
-/// Largest accepted signal (CONTRACT: sync up to 250,000 samples; the core takes 4x that).
+/// Largest accepted signal (openapi.yaml: sync up to 250,000 samples; the core takes 4x that).
 pub const MAX_SAMPLES: usize = 1_000_000;
 
 /// Decomposes `x` (mm) with `method`. With a grid (`params.nu`, `params.nv`, k = iv·nu + iu)
@@ -100,7 +121,7 @@ pub const MAX_SAMPLES: usize = 1_000_000;
 /// Probe flyers (`params.flyers`, on by default) are found and left out first
 /// ([`super::flyers`]): on clean data the answer is the plain decomposition, bit for bit.
 ///
-/// Reference: paper 002; see [`coarse_to_fine`] for the stages. Known bad cases: see there
+/// Reference: Chen et al. 2024; see [`coarse_to_fine`] for the stages. Known bad cases: see there
 /// and [`super::flyers`].
 pub fn decompose(
     x: &[f64],

@@ -10,8 +10,8 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct EmdParams {
-    /// Sifting stops when SD = Σ(h_{k-1} − h_k)² / Σ h_{k-1}² falls below this (paper eq. 13,
-    /// typically 0.2–0.3). Default 0.2.
+    /// Sifting stops when SD = Σ(h_{k-1} − h_k)² / Σ h_{k-1}² falls below this (Chen et al. 2024
+    /// eq. 13, typically 0.2–0.3). Default 0.2.
     pub sd_threshold: f64,
     /// Cap on sifting iterations per IMF. Default 100.
     pub max_sift: usize,
@@ -61,7 +61,9 @@ impl EmdParams {
 /// Σ imfs + residue == x exactly.
 #[derive(Clone, Debug, Serialize)]
 pub struct EmdResult {
+    /// Intrinsic mode functions, highest frequency first, each as long as the input.
     pub imfs: Vec<Vec<f64>>,
+    /// What is left after the last IMF (the trend), in the input's unit.
     pub residue: Vec<f64>,
     /// Sifting iterations used per IMF.
     pub sifts: Vec<usize>,
@@ -182,7 +184,7 @@ fn envelopes(
 
 /// Empirical mode decomposition of `x` into IMFs and a residue.
 ///
-/// Formula (paper 002 eqs. 9-16): sift h ← h − (e_max + e_min)/2 with not-a-knot cubic
+/// Formula (Chen et al. 2024 eqs. 9–16): sift h ← h − (e_max + e_min)/2 with not-a-knot cubic
 /// envelopes through the extrema (mirrored at the ends) until SD < `sd_threshold` and the
 /// candidate's maxima are positive and minima negative, or `max_sift`; subtract the IMF and
 /// repeat on the rest until it has fewer than two maxima or minima (the trend), or
@@ -232,7 +234,7 @@ pub fn emd(x: &[f64], params: &EmdParams) -> Result<EmdResult, Error> {
             let sd = if den > 0.0 { num / den } else { 0.0 };
             (hmax, hmin) = extrema(&h);
             let (mx, mn) = (&hmax, &hmin);
-            // IMF definition (paper 002 §2.3.2): maxima above and minima below zero (checked
+            // IMF definition (Chen et al. 2024 §2.3.2): maxima above and minima below zero (checked
             // on the envelope knots of the iterate that was sifted, end points included, as
             // PyEMD does), and as many extrema as zero crossings, give or take one.
             let crossings = h

@@ -8,22 +8,40 @@ pub enum Error {
     /// The signal (or a component) has too few samples for the requested method.
     #[error("signal has {got} samples; {method} needs at least {min}")]
     TooShort {
+        /// The method that needs more samples (`vmd`, `emd`, ...).
         method: &'static str,
+        /// Samples sent.
         got: usize,
+        /// Fewest samples the method accepts.
         min: usize,
     },
     /// A sample is NaN or infinite.
     #[error("signal[{index}] is not a finite number; send finite values in mm")]
-    NonFinite { index: usize },
+    NonFinite {
+        /// Index of the first bad sample.
+        index: usize,
+    },
     /// A parameter is out of its range.
     #[error("parameter '{name}' is invalid: {reason}")]
-    BadParam { name: &'static str, reason: String },
+    BadParam {
+        /// Name of the parameter (as the API names it).
+        name: &'static str,
+        /// Its allowed range, as a sentence.
+        reason: String,
+    },
     /// An unknown wavelet name.
     #[error("unknown wavelet '{0}'; use db1..db10, haar or sym2..sym10")]
     UnknownWavelet(String),
     /// The grid shape does not match the number of samples.
     #[error("grid {nu} x {nv} does not match {n} samples; nu*nv must equal the signal length")]
-    GridMismatch { nu: usize, nv: usize, n: usize },
+    GridMismatch {
+        /// Grid points along u.
+        nu: usize,
+        /// Grid points along v.
+        nv: usize,
+        /// Samples sent.
+        n: usize,
+    },
 }
 
 /// Checks that every sample is finite and that there are at least `min` samples.

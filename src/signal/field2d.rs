@@ -11,7 +11,7 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum Order {
-    /// Row by row, u fastest (the paper's reading; a jump at every row end).
+    /// Row by row, u fastest (Chen et al. 2024's reading; a jump at every row end).
     RowMajor,
     /// Row by row with every odd row reversed, so consecutive samples stay neighbours.
     Serpentine,

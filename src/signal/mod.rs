@@ -1,4 +1,4 @@
-//! Machining-error decomposition (seed 002): VMD, EMD, wavelet denoising, penalised
+//! Machining-error decomposition (Chen et al. 2024): VMD, EMD, wavelet denoising, penalised
 //! smoothing, correlation screening and the coarse-to-fine pipeline, in 1-D and on 2-D grids.
 
 pub mod carrier;

@@ -1,6 +1,6 @@
-//! Pearson correlation screening of components (paper 002 section 2.2, eqs. 2 and 18).
+//! Pearson correlation screening of components (Chen et al. 2024 §2.2, eqs. 2 and 18).
 
-/// Pearson correlation coefficient r of two equally long series (paper eq. 2). Returns 0
+/// Pearson correlation coefficient r of two equally long series (Chen et al. 2024 eq. 2). Returns 0
 /// when either series is constant (r is undefined there; a constant component carries no
 /// correlated variation) or the lengths differ.
 pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
@@ -24,7 +24,7 @@ pub fn pearson(a: &[f64], b: &[f64]) -> f64 {
 }
 
 /// Screens components against a reference: r_i = pearson(component_i, reference) and
-/// strong_i = |r_i| > threshold (paper: 0.3, Cohen's "weak correlation" bound).
+/// strong_i = |r_i| > threshold (Chen et al. 2024: 0.3, Cohen's "weak correlation" bound).
 pub fn screen(components: &[Vec<f64>], reference: &[f64], threshold: f64) -> (Vec<f64>, Vec<bool>) {
     let r: Vec<f64> = components.iter().map(|c| pearson(c, reference)).collect();
     let strong = r.iter().map(|v| v.abs() > threshold).collect();

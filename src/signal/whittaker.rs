@@ -12,6 +12,7 @@ use serde::Serialize;
 /// Result of a smoothing run.
 #[derive(Clone, Debug, Serialize)]
 pub struct Smoothed {
+    /// The smoothed signal, same length and unit as the input.
     #[serde(skip)]
     pub signal: Vec<f64>,
     /// Smoothing parameter λ used (dimensionless, per sample spacing).

@@ -2,7 +2,7 @@
 //! all cores, and the network that predicts the step error (training, fine-tuning, the model
 //! file's metadata). Uses the `geometry` core (the exact route, features) and `nn` (the
 //! network); knows nothing of HTTP, so the server, the CLI and the benchmarks call it alike.
-//! Reference: seed 000 eq. (1), as `geometry::step_error`.
+//! Reference: Zhang et al. 2023 eq. 1, as `geometry::step_error`.
 
 mod batch;
 mod error;

@@ -23,7 +23,7 @@ pub struct TrainJob {
     pub init: Init,
     /// Training hyper-parameters.
     pub cfg: TrainConfig,
-    /// Held-out part for the reported test errors (0.3 = the paper's 70/30).
+    /// Held-out part for the reported test errors (0.3 = Zhang et al. 2023's 70/30).
     pub test_fraction: f64,
     /// Model to fine-tune, if any.
     pub base: Option<Regressor>,

@@ -1,4 +1,4 @@
-//! Seed 004's construction of a full 3-D sample set from measurements along a few
+//! Wang, Dai & Hong's construction of a full 3-D sample set from measurements along a few
 //! axis lines, by its additive rule.
 
 use super::Error;
@@ -20,8 +20,11 @@ pub struct AxisLine {
 pub struct AxisLines {
     /// The point all three lines pass through (mm).
     pub reference: [f64; 3],
+    /// The line along X (y and z at the reference).
     pub x: AxisLine,
+    /// The line along Y (x and z at the reference).
     pub y: AxisLine,
+    /// The line along Z (x and y at the reference).
     pub z: AxisLine,
 }
 
@@ -79,10 +82,10 @@ fn at(line: &[(f64, [f64; 3])], q: f64) -> [f64; 3] {
 }
 
 /// Builds the full grid `positions_x × positions_y × positions_z` (x fastest) by the
-/// additive rule of seed 004 §3.3:
+/// additive rule of Wang, Dai & Hong §3.3:
 /// `e(x, y, z) = e_X(x) + e_Y(y) + e_Z(z) − e_X(x_r) − e_Y(y_r) − e_Z(z_r) + ē_r`,
 /// where `e_K` is the error measured along line K, `(x_r, y_r, z_r)` the reference point
-/// and `ē_r` the mean of the three lines' (linearly interpolated) errors there. Seed 004
+/// and `ē_r` the mean of the three lines' (linearly interpolated) errors there. Wang, Dai & Hong
 /// writes it for its two gauges as `δx_m = δx_c(v) + (δx_T(u) − δx_c(w))`: the error
 /// on one line plus the change along another line relative to their common point.
 ///

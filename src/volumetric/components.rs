@@ -21,8 +21,11 @@ pub struct Curve {
 /// The six error motions of one axis.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct AxisCurves {
+    /// The moving axis: `X`, `Y` or `Z`.
     pub axis: String,
+    /// Positions along the axis where the curves are sampled, mm.
     pub position_mm: Vec<f64>,
+    /// Its six error motions (positioning, two straightnesses, roll, pitch, yaw).
     pub curves: Vec<Curve>,
 }
 
@@ -31,14 +34,18 @@ pub struct AxisCurves {
 pub struct Squareness {
     /// `EC0Y` (Y to X), `EB0Z` (Z to X) or `EA0Z` (Z to Y).
     pub name: String,
+    /// The out-of-squareness angle, µrad.
     pub value_urad: f64,
 }
 
 /// All 21 components.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ComponentCurves {
+    /// The 18 error motions, six per linear axis.
     pub axes: Vec<AxisCurves>,
+    /// The three squareness errors.
     pub squareness: Vec<Squareness>,
+    /// Tool offset from the spindle reference (x, y, z), mm, used for the Abbe terms.
     pub tool_offset_mm: [f64; 3],
     /// What could not be identified and why.
     pub notes: Vec<String>,

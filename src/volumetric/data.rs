@@ -7,17 +7,21 @@ use serde::{Deserialize, Serialize};
 ///
 /// `nodes` are commanded positions (mm, machine coordinates); `errors` are the
 /// measured positioning errors there, actual − commanded (mm), as a laser tracker or
-/// interferometer reports them (seed 001 §1, step 1).
+/// interferometer reports them (Xiang et al. 2019 §1, step 1).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct VolumetricData {
+    /// Commanded positions (x, y, z), mm, machine coordinates.
     pub nodes: Vec<[f64; 3]>,
+    /// Positioning error at each node (ex, ey, ez) = actual − commanded, mm.
     pub errors: Vec<[f64; 3]>,
 }
 
 /// Axis-aligned box of the measured nodes (mm).
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct Bounds {
+    /// Smallest x, y, z of the nodes, mm.
     pub min: [f64; 3],
+    /// Largest x, y, z of the nodes, mm.
     pub max: [f64; 3],
 }
 

@@ -15,7 +15,7 @@ pub struct TableSpec {
     pub max: [f64; 3],
     /// Points per axis (≥ 2 each, or 1 with `min == max`).
     pub points: [usize; 3],
-    /// The controller's limit of points per axis (seed 001: FANUC allows 25), checked.
+    /// The controller's limit of points per axis (Xiang et al. 2019: FANUC allows 25), checked.
     pub max_points_per_axis: Option<usize>,
 }
 
@@ -90,7 +90,7 @@ impl TableSpec {
 /// Writes the compensation table as CSV with header
 /// `x,y,z,dx,dy,dz,comp_x,comp_y,comp_z,out_of_box`: node (mm), predicted error
 /// (actual − commanded, mm) and the compensation a controller adds to the command
-/// (`comp = −error`, mm), x running fastest, then y, then z (the order seed 001
+/// (`comp = −error`, mm), x running fastest, then y, then z (the order Xiang et al. 2019
 /// measures in). Values with 6 decimals (nm). `out_of_box` is 1 where the node lies
 /// outside the measured volume (the nearest measured value is held there).
 pub fn compensation_table_csv(map: &VolumetricMap, spec: &TableSpec) -> Result<String, Error> {

@@ -14,7 +14,7 @@ pub enum ResidualKind {
     /// Tensor-product cubic P-spline, λ by GCV (default: deterministic, milliseconds).
     #[default]
     Spline,
-    /// The seeds' small sigmoid network (3-8-3).
+    /// Xiang et al. 2019's and Wang, Dai & Hong's small sigmoid network (3-8-3).
     Network,
 }
 
@@ -36,9 +36,12 @@ impl ResidualKind {
 /// (files written before the spline option hold `residual`).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct HybridModel {
+    /// The rigid-body ISO 230-1 part.
     pub kinematic: KinematicModel,
+    /// The residual as a 3-8-3 network (files written before the spline option).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub residual: Option<NetworkMap>,
+    /// The residual as a 3-D smoothing spline.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub spline: Option<SmoothingSpline3>,
 }

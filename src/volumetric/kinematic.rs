@@ -26,7 +26,7 @@ pub const SQUARENESS_NAMES: [&str; 3] = ["EC0Y", "EB0Z", "EA0Z"];
 /// curved terms); translations in mm, rotations in rad.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct KinematicModel {
-    /// Abbe offset of the tool tip from the Z carriage's reference point (mm).
+    /// Abbe offset of the tool tip from the Z carriage's reference point, mm.
     pub tool_offset_mm: [f64; 3],
     /// Axis ranges used to normalise positions (mm).
     pub range: [[f64; 2]; 3],

@@ -1,4 +1,5 @@
-//! Volumetric error maps of a machine's working volume (seeds 001, 004; ISO 230-1).
+//! Volumetric error maps of a machine's working volume (Xiang et al. 2019 and Wang, Dai & Hong;
+//! ISO 230-1).
 mod additive;
 mod components;
 mod data;

@@ -12,11 +12,16 @@ use serde::{Deserialize, Serialize};
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize, Default)]
 #[serde(rename_all = "snake_case")]
 pub enum ModelKind {
+    /// Fit every concrete kind and keep the best cross-validated one.
     #[default]
     Auto,
+    /// Trilinear interpolation on the measured grid (the controller-table baseline).
     Trilinear,
+    /// A 3-8-3 sigmoid network on z-scored coordinates.
     Network,
+    /// The rigid-body ISO 230-1 model with 21 error parameters.
     Kinematic,
+    /// Kinematic model plus a fitted residual (spline or network).
     Hybrid,
 }
 
@@ -59,9 +64,13 @@ impl ModelKind {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum Model {
+    /// A trilinear table on the measured grid.
     Trilinear(TrilinearMap),
+    /// A 3-8-3 network.
     Network(NetworkMap),
+    /// A rigid-body ISO 230-1 model.
     Kinematic(KinematicModel),
+    /// A kinematic model plus a residual.
     Hybrid(HybridModel),
 }
 

@@ -22,8 +22,10 @@ use std::sync::OnceLock;
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum MotionBasis {
+    /// Legendre polynomials P_0..P_cap (maps written before session 3).
     #[default]
     Legendre,
+    /// Cubic regression splines in Demmler-Reinsch form (default for new fits).
     Spline,
 }
 

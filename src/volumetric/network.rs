@@ -1,5 +1,5 @@
-//! The seeds' network: one hidden sigmoid layer, 3-8-3, z-scored inputs, trained by
-//! back-propagation (seed 001 steps 2–3; seed 004 §1–2).
+//! Xiang et al. 2019's and Wang, Dai & Hong's network: one hidden sigmoid layer, 3-8-3, z-scored
+//! inputs, trained by back-propagation (Xiang et al. 2019 steps 2–3; Wang, Dai & Hong §1–2).
 
 use super::Error;
 use super::data::{Bounds, VolumetricData};
@@ -9,10 +9,10 @@ use serde::{Deserialize, Serialize};
 /// Options of the network map.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 pub struct NetworkOptions {
-    /// Hidden neurons (seed 004: 8).
+    /// Hidden neurons (Wang, Dai & Hong: 8).
     pub hidden: usize,
-    /// Sigmoid on the output layer too, as both seeds do (targets min–max scaled into
-    /// [0.1, 0.9]); false: a linear output on z-scored targets.
+    /// Sigmoid on the output layer too, as both Xiang et al. 2019 and Wang, Dai & Hong do (targets
+    /// min–max scaled into [0.1, 0.9]); false: a linear output on z-scored targets.
     pub sigmoid_output: bool,
     /// Training epochs; `None` picks `clamp(600 000 / n, 20, 3 000)` for `n` nodes, a
     /// budget of about 40 000 mini-batch steps (fewer steps left the 3-8-3 network
@@ -90,12 +90,12 @@ fn flatten(xs: &[[f64; 3]]) -> Vec<f64> {
 impl NetworkMap {
     /// Trains the network on `data` (nodes → errors) with mean-squared-error loss and
     /// back-propagation (Adam, cosine-decayed learning rate 0.01→1e-4, mini-batches of
-    /// 16), the seeds' 3-h-3 topology with sigmoid hidden neurons.
+    /// 16), Xiang et al. 2019's and Wang, Dai & Hong's 3-h-3 topology with sigmoid hidden neurons.
     ///
-    /// Reference: seed 001 steps (2)–(3) (`b_h = f(α_h − γ_h)`, `y_j = f(β_j − θ_j)`,
-    /// `f(x) = 1/(1+e^−x)`, BP updates of weights and thresholds); seed 004 §2 (3-8-3).
-    /// The seeds stop at a loss target (004: SSE < 0.001) or fixed epochs; we use a
-    /// fixed budget of steps. Known bad cases: a few nodes (< 10) give an
+    /// Reference: Xiang et al. 2019 steps (2)–(3) (`b_h = f(α_h − γ_h)`, `y_j = f(β_j − θ_j)`,
+    /// `f(x) = 1/(1+e^−x)`, BP updates of weights and thresholds); Wang, Dai & Hong §2 (3-8-3).
+    /// Xiang et al. 2019 and Wang, Dai & Hong stop at a loss target (Wang, Dai & Hong: SSE < 0.001)
+    /// or fixed epochs; we use a fixed budget of steps. Known bad cases: a few nodes (< 10) give an
     /// under-determined network (59 weights for 3-8-3); the network does not reproduce
     /// the nodes exactly and smooths sharp features.
     pub fn fit(data: &VolumetricData, opts: &NetworkOptions) -> Result<NetworkMap, Error> {
@@ -205,7 +205,7 @@ mod tests {
             se += (0..3).map(|j| (e[j] - t[j]).powi(2)).sum::<f64>();
             ss += (0..3).map(|j| t[j].powi(2)).sum::<f64>();
         }
-        // seed 004's confidence measure RMSDL/RMSAL (paper: 0.0396 on its machine)
+        // Wang, Dai & Hong's confidence measure RMSDL/RMSAL (paper: 0.0396 on its machine)
         let ratio = (se / ss).sqrt();
         assert!(ratio < 0.3, "RMSDL/RMSAL = {ratio}");
         let json = serde_json::to_string(&net).unwrap();

@@ -19,7 +19,7 @@ pub struct TrilinearMap {
 impl TrilinearMap {
     /// Builds the table from measured grid nodes.
     ///
-    /// `max_points_per_axis` models the controller's table-size limit (seed 001,
+    /// `max_points_per_axis` models the controller's table-size limit (Xiang et al. 2019,
     /// background: FANUC allows at most 25 points per axis): an axis with more levels
     /// is resampled onto that many evenly spaced levels over its range, the values
     /// coming from trilinear interpolation of the full measured grid, which is what an

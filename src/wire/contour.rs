@@ -1,5 +1,5 @@
 //! The answer of `POST /v1/machines/{machine}/contour-error`, as the server sends it and
-//! `truecut contour --output` writes it: CONTRACT fields first, then extensions. Rows are
+//! `truecut contour --output` writes it: openapi.yaml fields first, then extensions. Rows are
 //! serialized straight from the prediction's columns (no copies: a million periods a body).
 
 use serde::Serialize;
@@ -47,7 +47,7 @@ struct Tracking<'a> {
     rms: &'a [f64],
 }
 
-/// The answer: CONTRACT fields first, then extensions (axis names, period, source line per
+/// The answer: openapi.yaml fields first, then extensions (axis names, period, source line per
 /// sample, worst sample, per-axis tracking error, 5-axis orientation error).
 #[derive(Serialize)]
 struct Answer<'a> {

@@ -1,4 +1,5 @@
-//! Step error of ball-end finishing over HTTP (CONTRACT "Step error"; seed 000): the exact
+//! Step error of ball-end finishing over HTTP (openapi.yaml `POST /v1/step-error` and the
+//! `step-error-*` routes; Zhang et al. 2023): the exact
 //! geometric route (`exact.rs`), sample generation (`samples.rs`), training / fine-tuning the
 //! network as a job and prediction from it (`model.rs`). The work is the `step_error` core's
 //! and the body decoding the `codec`'s; statuses are decided in `api/error.rs`.
@@ -16,7 +17,7 @@ use model::{model_info, predict, train};
 use samples::{samples, surface_samples};
 
 /// Segments answered synchronously by the sample routes (the exact route takes any count the
-/// body limit lets through; CONTRACT: sync up to 100,000).
+/// body limit lets through; openapi.yaml: sync up to 100,000).
 pub const MAX_SYNC_SAMPLES: usize = 200_000;
 
 /// Routes of this resource.

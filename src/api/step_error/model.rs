@@ -34,7 +34,8 @@ enum Preset {
     /// He init, Adam 1e-3 with cosine decay, no dropout, early stopping (converges).
     #[default]
     Default,
-    /// The seed's settings: N(0,1) init, SGD lr 1e-5 momentum 0.8, dropout 0.5 (does not converge).
+    /// Zhang et al. 2023's settings: N(0,1) init, SGD lr 1e-5 momentum 0.8, dropout 0.5 (does not
+    /// converge).
     Paper,
 }
 
@@ -64,7 +65,7 @@ pub(super) struct TrainRequest {
     dropout: Option<f64>,
     #[serde(default)]
     batch_size: Option<usize>,
-    /// Part of the samples held out to report accuracy (the paper's 30 %).
+    /// Part of the samples held out to report accuracy (Zhang et al. 2023's 30 %).
     #[serde(default)]
     test_fraction: Option<f64>,
     #[serde(default)]

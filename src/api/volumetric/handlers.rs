@@ -93,7 +93,7 @@ pub(super) async fn put_map(
             }
             (None, None, None) => {
                 return Err(ApiError::bad_request(
-                    "send either 'nodes' and 'errors' (measured grid) or 'lines' (seed 004 axis lines)",
+                    "send either 'nodes' and 'errors' (measured grid) or 'lines' (Wang, Dai & Hong axis lines)",
                 ));
             }
             _ => {

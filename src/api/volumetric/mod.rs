@@ -1,7 +1,8 @@
-//! Volumetric error maps (CONTRACT "Volumetric error map"; seeds 001, 004; ISO 230-1):
-//! `PUT/GET/DELETE /v1/machines/{machine}/volumetric-map`, `POST .../predict`,
-//! `GET .../table` (compensation table CSV). Also the one `From<volumetric::Error> for
-//! ApiError` and [`load_map`] for other capabilities (the gap diagnosis).
+//! Volumetric error maps (openapi.yaml `/v1/machines/{machine}/volumetric-map`; Xiang et al. 2019
+//! and Wang, Dai & Hong; ISO 230-1): `PUT/GET/DELETE /v1/machines/{machine}/volumetric-map`,
+//! `POST .../predict`, `GET .../table` (compensation table CSV). Also the one
+//! `From<volumetric::Error> for ApiError` and [`load_map`] for other capabilities (the gap
+//! diagnosis).
 //!
 //! Files: `request` (bodies, query strings and their limits, parsed into the core's
 //! options), `answer` (response bodies), `handlers` (the handlers and the model store).

@@ -9,9 +9,9 @@ use serde::Deserialize;
 use crate::api::error::{ApiError, ApiResult};
 use crate::volumetric::{AxisLines, FitOptions, ModelKind, NetworkOptions, ResidualKind};
 
-/// Most nodes fitted synchronously (CONTRACT: sync up to 20,000 nodes).
+/// Most nodes fitted synchronously (openapi.yaml: sync up to 20,000 nodes).
 pub const MAX_NODES: usize = 20_000;
-/// Most points predicted in one request (CONTRACT: sync up to 100,000 points).
+/// Most points predicted in one request (openapi.yaml: sync up to 100,000 points).
 pub const MAX_POINTS: usize = 100_000;
 /// Most training epochs a client may ask for.
 pub const MAX_EPOCHS: usize = 20_000;

@@ -106,7 +106,7 @@ fn clean_fields_name_no_point_over_many_seeds() {
             assert!(d.outliers.is_empty(), "seed {seed}: {:?}", d.outliers);
         }
     }
-    // 1-D, the paper's long signal shape: a drift, a sinusoid and noise.
+    // 1-D, Chen et al. 2024's long signal shape: a drift, a sinusoid and noise.
     for seed in 0..6 {
         let truth: Vec<f64> = (0..4000)
             .map(|k| {

@@ -1,7 +1,7 @@
 //! Variational mode decomposition (Dragomiretskiy & Zosso 2014), ADMM in the frequency domain.
 //!
 //! Written here (no crate): vmd-rs is an unreviewed port (DESIGN.md). The iteration is the
-//! published one (paper 002 eqs. 5-8); it is arranged so that one pass over the spectrum
+//! published one (Chen et al. 2024 eqs. 5–8); it is arranged so that one pass over the spectrum
 //! updates all K modes of a bin (mode k's Wiener filter uses only bin-local sums and the
 //! previous ω_k, so the bin loop and the mode loop commute), which keeps the work in cache.
 //!

@@ -12,10 +12,15 @@ use nalgebra::{Complex, DMatrix};
 /// The four filters of an orthogonal wavelet, in PyWavelets' orientation.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Wavelet {
+    /// PyWavelets name (`db4`, `sym8`, `haar`, ...).
     pub name: String,
+    /// Decomposition low-pass (scaling) filter.
     pub dec_lo: Vec<f64>,
+    /// Decomposition high-pass (wavelet) filter.
     pub dec_hi: Vec<f64>,
+    /// Reconstruction low-pass filter (`dec_lo` reversed).
     pub rec_lo: Vec<f64>,
+    /// Reconstruction high-pass filter (`dec_hi` reversed).
     pub rec_hi: Vec<f64>,
 }
 

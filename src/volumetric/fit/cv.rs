@@ -18,6 +18,7 @@ use serde::{Deserialize, Serialize};
 /// Cross-validated score of one model kind.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct ModelScore {
+    /// The model kind scored.
     pub model: ModelKind,
     /// RMS over held-out nodes of the length of (predicted − measured) error (mm).
     pub cv_rms_mm: Option<f64>,

@@ -27,7 +27,7 @@ pub struct FitOptions {
     pub max_points_per_axis: Option<usize>,
     /// What the hybrid fits to the kinematic residual (default `spline`).
     pub residual: ResidualKind,
-    /// The seeds' network settings.
+    /// Xiang et al. 2019's and Wang, Dai & Hong's network settings.
     pub network: NetworkOptions,
     /// At most this many cross-validation folds (default 8).
     pub max_folds: usize,
@@ -55,8 +55,8 @@ impl Default for FitOptions {
 /// model storing fewest numbers (see `choose`), and refits it on all nodes. The ISO 230-1 model is also
 /// fitted for the component curves.
 ///
-/// Reference: seed 001 (network vs the controller's spatial interpolation, FANUC);
-/// seed 004 (3-8-3 network, RMSDL/RMSAL); ISO 230-1:2012 (21 error parameters).
+/// Reference: Xiang et al. 2019 (network vs the controller's spatial interpolation, FANUC);
+/// Wang, Dai & Hong (3-8-3 network, RMSDL/RMSAL); ISO 230-1:2012 (21 error parameters).
 /// Errors: invalid data or options; trilinear asked for on scattered nodes.
 pub fn fit(data: &VolumetricData, options: &FitOptions) -> Result<VolumetricMap, Error> {
     let bounds = data.validate(8)?;

@@ -14,17 +14,21 @@ use serde::{Deserialize, Serialize};
 pub struct VolumetricMap {
     /// Format version of the serialised map.
     pub version: u32,
+    /// The fitted model (the chosen one when `auto` was asked for).
     pub model: Model,
     /// Box of the measured nodes (mm); queries outside it are clamped and flagged.
     pub bounds: Bounds,
+    /// Number of measured nodes fitted.
     pub n_nodes: usize,
     /// How the held-out nodes were chosen.
     pub cv_scheme: String,
+    /// Cross-validated score of each model kind tried.
     pub scores: Vec<ModelScore>,
     /// RMS length of the residual at the nodes of the chosen model (mm).
     pub fit_rms_mm: f64,
     /// The ISO 230-1 fit used for the 21 component curves (whatever model predicts).
     pub components: Option<KinematicModel>,
+    /// The options the map was fitted with.
     pub options: FitOptions,
 }
 

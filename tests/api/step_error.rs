@@ -1,10 +1,8 @@
-//! HTTP end to end: CONTRACT "Step error" — the exact route against the Python study's test
-//! vectors, sample generation, training / fine-tuning as jobs, prediction, and bad input.
+//! HTTP end to end: openapi.yaml `POST /v1/step-error` and the `step-error-*` routes — the exact
+//! route against the Python study's test vectors, sample generation, training / fine-tuning as
+//! jobs, prediction, and bad input.
 
-#[macro_use]
-mod helpers;
-
-use helpers::*;
+use crate::helpers::*;
 use serde_json::{Value, json};
 
 /// The study's test vectors (vendored in `tests/data/step/`) as (segment JSON, e_um).

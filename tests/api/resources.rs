@@ -1,10 +1,7 @@
 //! HTTP end to end on SQLite and PostgreSQL: machines, surfaces, measurements (JSON and
 //! CSV uploads), restart persistence, bad input.
 
-#[macro_use]
-mod helpers;
-
-use helpers::*;
+use crate::helpers::*;
 use serde_json::{Value, json};
 
 async fn machine_crud(app: TestApp) {

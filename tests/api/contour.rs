@@ -1,9 +1,7 @@
-//! HTTP end to end: POST /v1/machines/{machine}/contour-error (CONTRACT "Contour error"),
-//! and the `truecut contour` CLI.
+//! HTTP end to end: POST /v1/machines/{machine}/contour-error (openapi.yaml), and the
+//! `truecut contour` CLI.
 
-#[macro_use]
-mod helpers;
-use helpers::*;
+use crate::helpers::*;
 
 use serde_json::{Value, json};
 

@@ -1,9 +1,7 @@
-//! HTTP end to end: POST /v1/machines/{machine}/gap-diagnosis (CONTRACT "Sim-to-real gap
-//! diagnosis", motion and part), and the `truecut gap` CLI.
+//! HTTP end to end: POST /v1/machines/{machine}/gap-diagnosis (openapi.yaml, motion and
+//! part domains), and the `truecut gap` CLI.
 
-#[macro_use]
-mod helpers;
-use helpers::*;
+use crate::helpers::*;
 
 use rand::SeedableRng;
 use serde_json::{Value, json};

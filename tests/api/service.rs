@@ -1,14 +1,11 @@
 //! HTTP end to end: auth matrix, health, metrics, request ids, body limit, the loopback
 //! rule, and the real binary (`serve --demo`, graceful SIGTERM shutdown).
 
-#[macro_use]
-mod helpers;
-
 use std::io::{BufRead, BufReader};
 use std::process::{Command, Stdio};
 use std::time::Duration;
 
-use helpers::*;
+use crate::helpers::*;
 use serde_json::{Value, json};
 
 const TOKENS: &str = "r-tok read\nw-tok write\n# comment\na-tok admin\n";

@@ -1,12 +1,12 @@
 //! Test helpers: spawn the real server in-process on 127.0.0.1:0 with a fresh data dir,
 //! on SQLite (`spawn_app`) or PostgreSQL (`spawn_app_pg`, when `TRUECUT_TEST_PG` is set;
-//! each app gets its own schema, dropped afterwards). Use as `mod helpers;`.
+//! each app gets its own schema, dropped afterwards). Declared by `tests/api/main.rs`.
 #![allow(dead_code, unused_macros)]
 
 /// Defines `mod NAME { sqlite, postgres }` tests running `async fn NAME(app: TestApp)` on
 /// both backends (the PostgreSQL one prints SKIPPED when TRUECUT_TEST_PG is unset).
 /// `on_both_backends!(name, |c| c.queue = 0)` adjusts the configuration first.
-/// Use with `#[macro_use] mod helpers;`.
+/// `tests/api/main.rs` declares `helpers` first with `#[macro_use]`, so every module sees it.
 macro_rules! on_both_backends {
     ($name:ident) => {
         mod $name {

@@ -1,5 +1,6 @@
-//! The seed-000 network on the study's surfaces, at test scale (the full experiment with all
-//! 19,800 segments per surface and 0/1/5/10/15 % fine-tuning is `cargo bench --bench step_error`).
+//! The network of Zhang et al. 2023 on the study's surfaces, at test scale (the full experiment
+//! with all 19,800 segments per surface and 0/1/5/10/15 % fine-tuning is
+//! `cargo bench --bench step_error`).
 
 use truecut::geometry::{
     HeightSurface, PathPlan, StepError, StepErrorSegment, StepErrorSolver, StepFeatures,
@@ -89,9 +90,9 @@ fn train_surface1(
     (reg, abs_err(&pred, &truth))
 }
 
-/// The paper's settings (N(0,1) weights, SGD lr 1e-5 momentum 0.8, dropout 0.5, global inputs)
-/// stay near "predict the mean" while the default reaches sub-0.2 µm with the same epochs.
-/// Paper: MSE 0.001 after 2000 epochs, test max 0.78 µm (its Fig. 5, Table 3).
+/// Zhang et al. 2023's settings (N(0,1) weights, SGD lr 1e-5 momentum 0.8, dropout 0.5, global
+/// inputs) stay near "predict the mean" while the default reaches sub-0.2 µm with the same epochs.
+/// Zhang et al. 2023: MSE 0.001 after 2000 epochs, test max 0.78 µm (its Fig. 5, Table 3).
 #[test]
 fn paper_settings_do_not_converge_but_the_default_does() {
     let d = data(1, 100, 100);
@@ -129,7 +130,7 @@ fn paper_settings_do_not_converge_but_the_default_does() {
 }
 
 /// Local-frame, two-sided network trained on surface 1 only predicts surfaces 2 and 3 with no
-/// fine-tuning (the paper needed 15 % of each new surface: max 5.25 / 0.99 µm).
+/// fine-tuning (Zhang et al. 2023 needed 15 % of each new surface: max 5.25 / 0.99 µm).
 #[test]
 fn local_frame_network_transfers_without_fine_tuning() {
     let d1 = data(1, 200, 100);

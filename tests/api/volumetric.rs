@@ -1,9 +1,7 @@
-//! HTTP end-to-end tests of the volumetric error map routes (CONTRACT "Volumetric error
-//! map"), on a synthetic machine with known ISO 230-1 errors.
+//! HTTP end-to-end tests of the volumetric error map routes (openapi.yaml
+//! `/v1/machines/{machine}/volumetric-map`), on a synthetic machine with known ISO 230-1 errors.
 
-#[macro_use]
-mod helpers;
-use helpers::*;
+use crate::helpers::*;
 
 use serde_json::{Value, json};
 use truecut::volumetric::{ShapeFamily, SyntheticMachine};
@@ -177,7 +175,7 @@ async fn csv_upload_and_trilinear(app: TestApp) {
     for j in 0..3 {
         assert!((p["errors"][0][j].as_f64().unwrap() - d.errors[7][j]).abs() < 1e-12);
     }
-    // seed 004's axis lines build the grid by the additive rule
+    // Wang, Dai & Hong's axis lines build the grid by the additive rule
     let line = |k: usize| {
         let positions: Vec<f64> = (0..4).map(|i| m.travel_mm[k] * i as f64 / 3.0).collect();
         let errors: Vec<[f64; 3]> = positions

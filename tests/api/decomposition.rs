@@ -1,9 +1,7 @@
 //! HTTP end to end: decomposition (stateless and of a stored measurement) and compensation
 //! (JSON, CSV, resampled reconstruction, CL points), on SQLite and PostgreSQL.
 
-#[macro_use]
-mod helpers;
-use helpers::*;
+use crate::helpers::*;
 use serde_json::{Value, json};
 
 /// A smooth field plus deterministic pseudo-noise on an nu × nv grid, mm.
@@ -299,7 +297,7 @@ async fn measurement_decomposition_and_compensation(app: TestApp) {
 }
 on_both_backends!(measurement_decomposition_and_compensation);
 
-/// Above the sync limit (CONTRACT: sync up to 250,000 samples) the stateless route answers
+/// Above the sync limit (openapi.yaml: sync up to 250,000 samples) the stateless route answers
 /// 202 with a job whose result is the same decomposition (default method, coarse-to-fine);
 /// at the limit it answers 200.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
@@ -338,7 +336,7 @@ async fn large_decomposition_runs_as_a_job() {
     assert!((s2[mid] - s[mid]).abs() < 1e-4, "{} vs {}", s2[mid], s[mid]);
 }
 
-/// Probe flyers (CONTRACT v1.1): the upload warns, the decomposition names them, and the
+/// Probe flyers (openapi.yaml): the upload warns, the decomposition names them, and the
 /// compensation of every other point stays within 2 µm of the clean upload's.
 async fn probe_flyers_leave_the_compensation_alone(app: TestApp) {
     let n = 41;

@@ -1,14 +1,11 @@
 //! Worker pool (back-pressure, progress, results, jobs interrupted by a restart) and the
 //! model store (atomic files, checksums, corruption detection), on SQLite and PostgreSQL.
 
-#[macro_use]
-mod helpers;
-
 use std::sync::mpsc;
 use std::time::Duration;
 
+use crate::helpers::*;
 use axum::response::IntoResponse;
-use helpers::*;
 use serde_json::{Value, json};
 use truecut::api::ApiError;
 use truecut::jobs::JobPool;

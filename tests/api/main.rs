@@ -1,0 +1,19 @@
+//! The HTTP end-to-end suites as one test binary (one link instead of ten). Each module
+//! except `step_network` (the network on the study's surfaces) boots the real server
+//! through `helpers::spawn_app`, most on both backends with `on_both_backends!` (the
+//! PostgreSQL variants print SKIPPED without `TRUECUT_TEST_PG`). Run one suite with
+//! `cargo test --test api contour::`.
+
+// First, so that `on_both_backends!` is visible in every module below.
+#[macro_use]
+mod helpers;
+
+mod contour;
+mod decomposition;
+mod gap;
+mod jobs_models;
+mod resources;
+mod service;
+mod step_error;
+mod step_network;
+mod volumetric;
