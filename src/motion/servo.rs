@@ -289,6 +289,14 @@ impl DiscreteServo {
         let inv_t = 1.0 / self.period_s;
         for w in command.windows(2) {
             self.step(&mut y, (w[1] - w[0]) * inv_t, 0.0);
+            // While an axis stands still its tracking-error state decays geometrically into
+            // subnormal numbers, on which every multiply costs ~100 cycles: one axis holding
+            // still for minutes made the whole simulation 15x slower (BENCHMARKS.md, contour
+            // speed). A state below 1e-200 (in mm, mm/s, ...) is zero for every purpose, and
+            // an exact zero stays zero under a zero input.
+            if y.iter().all(|v| v.abs() < 1e-200) {
+                y = [0.0; 4];
+            }
             out.push(w[1] + y[0]);
         }
         out
