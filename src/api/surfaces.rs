@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use axum::Router;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
@@ -15,8 +15,9 @@ use serde_json::{Map, Value, json};
 use super::AppState;
 use super::auth::RequireAdmin;
 use super::error::{ApiError, ApiResult};
-use super::extract::{ApiJson, check_id, check_len, check_points};
+use super::extract::{ApiJson, check_len, check_points};
 use super::lookup::{require_machine, require_surface};
+use crate::api::id::PathIds;
 use crate::store::Surface;
 
 /// Routes of this resource.
@@ -135,11 +136,9 @@ fn summary(s: &Surface) -> Value {
 async fn put_surface(
     State(state): State<AppState>,
     _admin: RequireAdmin,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
     req: axum::extract::Request,
 ) -> ApiResult<Response> {
-    check_id("machine", &machine)?;
-    check_id("surface", &surface)?;
     if !super::extract::is_json(req.headers()) {
         return Err(ApiError::unsupported_media_type(
             "send the surface with Content-Type: application/json",
@@ -182,7 +181,7 @@ async fn put_surface(
 
 async fn get_surface(
     State(state): State<AppState>,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
 ) -> ApiResult<ApiJson<Value>> {
     let s = require_surface(&state, &machine, &surface).await?;
     let extra = state
@@ -204,7 +203,7 @@ async fn get_surface(
 
 async fn list_surfaces(
     State(state): State<AppState>,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
 ) -> ApiResult<ApiJson<Value>> {
     require_machine(&state, &machine).await?;
     let surfaces = state.store.list_surfaces(&machine).await?;
@@ -214,7 +213,7 @@ async fn list_surfaces(
 async fn delete_surface(
     State(state): State<AppState>,
     _admin: RequireAdmin,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
 ) -> ApiResult<StatusCode> {
     require_surface(&state, &machine, &surface).await?;
     state.store.delete_surface(&machine, &surface).await?;

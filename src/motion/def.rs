@@ -1,0 +1,468 @@
+//! The machine definition as PUT stores it, parsed once into a checked type: [`MachineDef`].
+//!
+//! Body of `PUT /v1/machines/{id}` (CONTRACT "Machines", "Servo model"):
+//! `{"name"?: str, "kinematics": "xyz" | "xyzac_table", "axes"?: {AXIS: SERVO},
+//! "geometry"?: {...}, "rapid_mm_min"?: mm/min}`, where SERVO is the normalized cascade
+//! `{"kv", "kff"?, "kp_v"?, "ti_v"?, "tc"?}` plus the extensions `"max_vel"`, `"max_accel"`,
+//! `"max_jerk"` (interpolator limits) and `"physical"` ([`PhysicalAxis`]).
+//!
+//! Why one type: the service used to check a definition three times with three rule sets (at
+//! PUT, for a contour, for a gap diagnosis), so PUT stored what a simulation later refused.
+//! Now every rule a simulation applies lives in [`MachineDef::validate`], which the parsers
+//! run, and every simulation builds its [`Machine`](super::Machine) from a `MachineDef` (CONTRACT
+//! v1.1 "Definitions are validated when stored, not when used"). Unknown keys are refused by
+//! serde with the key and the keys allowed; the JSON path of any refusal comes from
+//! `serde_path_to_error`. The one thing a simulation may still refuse is an axis that is
+//! absent: `axes` is optional in the CONTRACT (a machine may carry only surfaces or a
+//! volumetric map), and a contour needs every axis of its kinematics.
+
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
+
+use super::error::Error;
+use super::kinematics::TableGeometry;
+use super::machine::{AxisLimits, MachineAxis};
+use super::physical::PhysicalAxis;
+use super::servo::ServoAxis;
+
+/// A closed interval `[lo, hi]` (or `(lo, hi]` when `lo_open`) a definition number must lie
+/// in, with its unit and meaning for the 400 sentence.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Bounds {
+    /// Lower end.
+    pub lo: f64,
+    /// True when `lo` itself is refused (a gain of 0 is no loop at all).
+    pub lo_open: bool,
+    /// Upper end (inclusive).
+    pub hi: f64,
+    /// Unit and meaning, e.g. "1/s, position loop gain".
+    pub what: &'static str,
+}
+
+impl Bounds {
+    const fn open(lo: f64, hi: f64, what: &'static str) -> Bounds {
+        Bounds {
+            lo,
+            lo_open: true,
+            hi,
+            what,
+        }
+    }
+    const fn closed(lo: f64, hi: f64, what: &'static str) -> Bounds {
+        Bounds {
+            lo,
+            lo_open: false,
+            hi,
+            what,
+        }
+    }
+
+    /// Refuses `value` outside the bounds (or not finite) with [`Error::BadDefinition`].
+    pub fn check(&self, field: &str, value: f64) -> Result<f64, Error> {
+        let above_lo = if self.lo_open {
+            value > self.lo
+        } else {
+            value >= self.lo
+        };
+        if value.is_finite() && above_lo && value <= self.hi {
+            return Ok(value);
+        }
+        let range = if self.lo_open {
+            format!("must be > {} and at most {}", self.lo, self.hi)
+        } else {
+            format!("must be in {}..{}", self.lo, self.hi)
+        };
+        Err(Error::BadDefinition {
+            field: field.to_string(),
+            message: format!("{range} ({}), got {value}", self.what),
+        })
+    }
+}
+
+/// Position-loop gain `kv`: (0, 10000] 1/s. Real feed drives run 10–100 1/s; the bound is the
+/// CONTRACT's example of a physical range, and keeps `kv·period_s` far from the discretization's
+/// limits at the shortest period a simulation accepts (1e-5 s).
+pub const KV: Bounds = Bounds::open(0.0, 10_000.0, "1/s, position loop gain");
+/// Velocity feed-forward fraction `kff`: [0, 1] (beyond 1 the axis runs ahead of the command).
+pub const KFF: Bounds = Bounds::closed(0.0, 1.0, "velocity feed-forward fraction");
+/// Velocity-loop gain `kp_v`: (0, 1e5] 1/s. A velocity loop of 1–2 kHz bandwidth is
+/// `kp_v` ≈ 1e4 1/s; ten times that is no drive's.
+pub const KP_V: Bounds = Bounds::open(0.0, 1e5, "1/s, velocity loop gain");
+/// Velocity-loop integral time `ti_v`: [1e-5, 10] s (drives use 1 ms – 1 s).
+pub const TI_V: Bounds = Bounds::closed(1e-5, 10.0, "s, velocity loop integral time");
+/// Current-loop time constant `tc`: [1e-6, 0.1] s (drives: 50 µs – 5 ms).
+pub const TC: Bounds = Bounds::closed(1e-6, 0.1, "s, current loop time constant");
+/// Interpolator velocity cap `max_vel`: (0, 1e6] mm/s or deg/s. Generous on purpose: tests and
+/// studies set huge limits to switch the feed profile off; the bound keeps the profile finite.
+pub const MAX_VEL: Bounds = Bounds::open(0.0, 1e6, "mm/s or deg/s, velocity limit");
+/// Interpolator acceleration cap `max_accel`: (0, 1e8] mm/s² or deg/s².
+pub const MAX_ACCEL: Bounds = Bounds::open(0.0, 1e8, "mm/s² or deg/s², acceleration limit");
+/// Interpolator jerk cap `max_jerk`: (0, 1e11] mm/s³ or deg/s³.
+pub const MAX_JERK: Bounds = Bounds::open(0.0, 1e11, "mm/s³ or deg/s³, jerk limit");
+/// G0 rate `rapid_mm_min`: (0, 1e6] mm/min (1 km/min; the fastest linear axes do 120 m/min).
+pub const RAPID_MM_MIN: Bounds = Bounds::open(0.0, 1e6, "mm/min, rapid rate");
+/// Any geometry coordinate or length: |v| ≤ 1e5 mm (100 m).
+pub const GEOMETRY_MM: f64 = 1e5;
+
+/// Physical drive parameters' ranges (field of [`PhysicalAxis`], bounds). Generous physical
+/// ceilings: they refuse typos of several orders of magnitude, not unusual machines.
+pub const PHYSICAL: [(&str, Bounds); 12] = [
+    ("motor_inertia_kg_m2", Bounds::open(0.0, 100.0, "kg·m²")),
+    (
+        "velocity_gain_nm_s_per_rad",
+        Bounds::open(0.0, 1e4, "N·m·s/rad"),
+    ),
+    ("current_bandwidth_hz", Bounds::open(0.0, 1e5, "Hz")),
+    ("lead_mm", Bounds::open(0.0, 1000.0, "mm per revolution")),
+    ("table_mass_kg", Bounds::open(0.0, 1e6, "kg")),
+    ("axial_stiffness_n_per_um", Bounds::open(0.0, 1e5, "N/µm")),
+    (
+        "screw_torsional_stiffness_nm_per_rad",
+        Bounds::open(0.0, 1e10, "N·m/rad"),
+    ),
+    (
+        "table_damping_n_s_per_m",
+        Bounds::closed(0.0, 1e10, "N·s/m"),
+    ),
+    (
+        "gear_ratio",
+        Bounds::open(0.0, 1e5, "motor revolutions per table revolution"),
+    ),
+    ("table_inertia_kg_m2", Bounds::open(0.0, 1e6, "kg·m²")),
+    (
+        "torsional_stiffness_nm_per_rad",
+        Bounds::open(0.0, 1e10, "N·m/rad"),
+    ),
+    (
+        "table_damping_nm_s_per_rad",
+        Bounds::closed(0.0, 1e10, "N·m·s/rad"),
+    ),
+];
+
+/// Kinematic chains the service knows (the machine JSON's `"kinematics"`).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub enum KinematicsKind {
+    /// Three linear axes X, Y, Z.
+    #[serde(rename = "xyz")]
+    Xyz,
+    /// X, Y, Z plus a tilting (A) and rotary (C) table.
+    #[serde(rename = "xyzac_table")]
+    XyzacTable,
+}
+
+impl KinematicsKind {
+    /// The name as the JSON spells it.
+    pub fn name(self) -> &'static str {
+        match self {
+            KinematicsKind::Xyz => "xyz",
+            KinematicsKind::XyzacTable => "xyzac_table",
+        }
+    }
+
+    /// The axes of this kinematics, in the machine's axis order.
+    pub fn axis_names(self) -> &'static [&'static str] {
+        match self {
+            KinematicsKind::Xyz => &["X", "Y", "Z"],
+            KinematicsKind::XyzacTable => &["X", "Y", "Z", "A", "C"],
+        }
+    }
+}
+
+/// A machine definition (see the module docs); build one with [`MachineDef::from_slice`] or
+/// [`MachineDef::from_value`], which both run [`MachineDef::validate`].
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a machine definition object {\"kinematics\": \"xyz\" | \"xyzac_table\", \"axes\"?: {AXIS: SERVO}}"
+)]
+pub struct MachineDef {
+    /// Display name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub name: Option<String>,
+    /// Kinematic chain.
+    pub kinematics: KinematicsKind,
+    /// Servo model per axis; axes may be absent (then the machine does not simulate).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub axes: Option<AxesDef>,
+    /// Table offsets and tool length (xyzac_table only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub geometry: Option<TableGeometry>,
+    /// G0 rate along the path, mm/min (default 30,000).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub rapid_mm_min: Option<f64>,
+}
+
+/// The `"axes"` object: one optional servo per axis letter.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "an object mapping an axis letter (X, Y, Z, A, C) to its servo model"
+)]
+pub struct AxesDef {
+    /// Axis X.
+    #[serde(rename = "X", default, skip_serializing_if = "Option::is_none")]
+    pub x: Option<AxisDef>,
+    /// Axis Y.
+    #[serde(rename = "Y", default, skip_serializing_if = "Option::is_none")]
+    pub y: Option<AxisDef>,
+    /// Axis Z.
+    #[serde(rename = "Z", default, skip_serializing_if = "Option::is_none")]
+    pub z: Option<AxisDef>,
+    /// Axis A (table tilt about X).
+    #[serde(rename = "A", default, skip_serializing_if = "Option::is_none")]
+    pub a: Option<AxisDef>,
+    /// Axis C (table rotation about Z).
+    #[serde(rename = "C", default, skip_serializing_if = "Option::is_none")]
+    pub c: Option<AxisDef>,
+}
+
+impl AxesDef {
+    /// The servo of axis `name` ("X", "Y", "Z", "A" or "C"), if given.
+    pub fn get(&self, name: &str) -> Option<&AxisDef> {
+        match name {
+            "X" => self.x.as_ref(),
+            "Y" => self.y.as_ref(),
+            "Z" => self.z.as_ref(),
+            "A" => self.a.as_ref(),
+            "C" => self.c.as_ref(),
+            _ => None,
+        }
+    }
+
+    /// The axes given, as (letter, servo), in the order X, Y, Z, A, C.
+    pub fn present(&self) -> impl Iterator<Item = (&'static str, &AxisDef)> {
+        ["X", "Y", "Z", "A", "C"]
+            .into_iter()
+            .filter_map(|n| self.get(n).map(|a| (n, a)))
+    }
+}
+
+/// One axis: the CONTRACT cascade (units: 1/s for gains, s for times), limits, physical drive.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(
+    deny_unknown_fields,
+    expecting = "a servo model object like {\"kv\": 30.0} (kv in 1/s)"
+)]
+pub struct AxisDef {
+    /// Position-loop gain, 1/s ([`KV`]).
+    pub kv: f64,
+    /// Velocity feed-forward fraction ([`KFF`], default 0).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kff: Option<f64>,
+    /// Velocity-loop gain, 1/s ([`KP_V`]); absent: ideal velocity loop (or from `physical`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub kp_v: Option<f64>,
+    /// Velocity-loop integral time, s ([`TI_V`]); absent: no integral action.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ti_v: Option<f64>,
+    /// Current-loop time constant, s ([`TC`]); absent: ideal current loop (or from `physical`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub tc: Option<f64>,
+    /// Velocity cap, mm/s or deg/s ([`MAX_VEL`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_vel: Option<f64>,
+    /// Acceleration cap, mm/s² or deg/s² ([`MAX_ACCEL`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_accel: Option<f64>,
+    /// Jerk cap, mm/s³ or deg/s³ ([`MAX_JERK`]).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub max_jerk: Option<f64>,
+    /// Physical drive parameters ([`PHYSICAL`] ranges).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub physical: Option<PhysicalAxis>,
+}
+
+fn path_error<E: std::fmt::Display>(e: serde_path_to_error::Error<E>) -> Error {
+    let path = e.path().to_string();
+    Error::BadDefinition {
+        field: if path == "." {
+            "the definition".into()
+        } else {
+            path
+        },
+        message: e.inner().to_string(),
+    }
+}
+
+impl MachineDef {
+    /// Parses and validates a definition from JSON bytes (a PUT body). A number JSON cannot
+    /// hold (`1e400`) is named by its path like any other refusal.
+    pub fn from_slice(bytes: &[u8]) -> Result<MachineDef, Error> {
+        let mut de = serde_json::Deserializer::from_slice(bytes);
+        let def: MachineDef = serde_path_to_error::deserialize(&mut de).map_err(path_error)?;
+        de.end().map_err(|e| Error::BadDefinition {
+            field: "the definition".into(),
+            message: e.to_string(),
+        })?;
+        def.validate()?;
+        Ok(def)
+    }
+
+    /// Parses and validates a definition from JSON (a stored definition, a CLI file).
+    pub fn from_value(value: &Value) -> Result<MachineDef, Error> {
+        let def: MachineDef = serde_path_to_error::deserialize(value).map_err(path_error)?;
+        def.validate()?;
+        Ok(def)
+    }
+
+    /// Every rule any simulation applies, so a definition that passes never fails later for a
+    /// reason it could have shown: axes belong to the kinematics; geometry only on
+    /// `xyzac_table` and finite (|v| ≤ [`GEOMETRY_MM`]); `rapid_mm_min` in [`RAPID_MM_MIN`];
+    /// per axis the ranges [`KV`], [`KFF`], [`KP_V`], [`TI_V`], [`TC`], [`MAX_VEL`],
+    /// [`MAX_ACCEL`], [`MAX_JERK`], [`PHYSICAL`], the physical parameters each axis kind needs,
+    /// and a stable closed loop after `physical` fills `kp_v`/`tc` ([`ServoAxis::validate`]).
+    pub fn validate(&self) -> Result<(), Error> {
+        let kin = self.kinematics;
+        if let Some(g) = &self.geometry {
+            if kin != KinematicsKind::XyzacTable {
+                return Err(Error::BadDefinition {
+                    field: "geometry".into(),
+                    message:
+                        "table offsets and tool length apply only to kinematics \"xyzac_table\""
+                            .into(),
+                });
+            }
+            let fields = [
+                ("a_axis_origin", &g.a_axis_origin[..]),
+                ("c_axis_origin", &g.c_axis_origin[..]),
+                ("tool_length", std::slice::from_ref(&g.tool_length)),
+            ];
+            for (name, values) in fields {
+                if let Some(v) = values
+                    .iter()
+                    .find(|v| !(v.is_finite() && v.abs() <= GEOMETRY_MM))
+                {
+                    return Err(Error::BadDefinition {
+                        field: format!("geometry.{name}"),
+                        message: format!(
+                            "every value must be a finite number of mm, at most {GEOMETRY_MM} in size, got {v}"
+                        ),
+                    });
+                }
+            }
+        }
+        if let Some(r) = self.rapid_mm_min {
+            RAPID_MM_MIN.check("rapid_mm_min", r)?;
+        }
+        if let Some(axes) = &self.axes {
+            let allowed = kin.axis_names();
+            for (name, axis) in axes.present() {
+                let Some(i) = allowed.iter().position(|a| *a == name) else {
+                    return Err(Error::BadDefinition {
+                        field: format!("axes.{name}"),
+                        message: format!(
+                            "axis '{name}' does not exist on kinematics '{}' (axes: {})",
+                            kin.name(),
+                            allowed.join(", ")
+                        ),
+                    });
+                };
+                axis.build(name, i >= 3)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl AxisDef {
+    /// The simulated axis: ranges checked, `kp_v`/`tc` filled from `physical` when absent,
+    /// structural mode from `physical`, stability checked. Errors name `axes.{name}.{field}`.
+    pub fn build(&self, name: &'static str, rotary: bool) -> Result<MachineAxis, Error> {
+        let field = |key: &str| format!("axes.{name}.{key}");
+        let mut servo = ServoAxis {
+            kv: KV.check(&field("kv"), self.kv)?,
+            kff: match self.kff {
+                Some(k) => KFF.check(&field("kff"), k)?,
+                None => 0.0,
+            },
+            kp_v: self
+                .kp_v
+                .map(|v| KP_V.check(&field("kp_v"), v))
+                .transpose()?,
+            ti_v: self
+                .ti_v
+                .map(|v| TI_V.check(&field("ti_v"), v))
+                .transpose()?,
+            tc: self.tc.map(|v| TC.check(&field("tc"), v)).transpose()?,
+        };
+        let mut limits = if rotary {
+            AxisLimits::ROTARY_DEFAULT
+        } else {
+            AxisLimits::LINEAR_DEFAULT
+        };
+        for (key, given, bounds, slot) in [
+            ("max_vel", self.max_vel, MAX_VEL, &mut limits.max_vel),
+            (
+                "max_accel",
+                self.max_accel,
+                MAX_ACCEL,
+                &mut limits.max_accel,
+            ),
+            ("max_jerk", self.max_jerk, MAX_JERK, &mut limits.max_jerk),
+        ] {
+            if let Some(v) = given {
+                *slot = bounds.check(&field(key), v)?;
+            }
+        }
+        let mut structure = None;
+        if let Some(phys) = &self.physical {
+            check_physical(name, phys)?;
+            let named = |e: Error| Error::BadDefinition {
+                field: format!("axes.{name}"),
+                message: e.to_string(),
+            };
+            if servo.kp_v.is_none() {
+                servo.kp_v = phys
+                    .kp_v(rotary)
+                    .map_err(named)?
+                    .map(|v| KP_V.check(&field("kp_v (from physical)"), v))
+                    .transpose()?;
+            }
+            if servo.tc.is_none() {
+                servo.tc = phys
+                    .tc()
+                    .map_err(named)?
+                    .map(|v| TC.check(&field("tc (from physical)"), v))
+                    .transpose()?;
+            }
+            structure = phys.structural_mode(rotary).map_err(named)?;
+        }
+        servo.validate().map_err(|e| Error::BadDefinition {
+            field: format!("axes.{name}"),
+            message: e.to_string(),
+        })?;
+        Ok(MachineAxis {
+            name,
+            servo,
+            limits,
+            structure,
+        })
+    }
+}
+
+/// Checks every given physical parameter against [`PHYSICAL`].
+fn check_physical(axis: &str, p: &PhysicalAxis) -> Result<(), Error> {
+    let values = [
+        Some(p.motor_inertia_kg_m2),
+        p.velocity_gain_nm_s_per_rad,
+        p.current_bandwidth_hz,
+        p.lead_mm,
+        p.table_mass_kg,
+        p.axial_stiffness_n_per_um,
+        p.screw_torsional_stiffness_nm_per_rad,
+        p.table_damping_n_s_per_m,
+        p.gear_ratio,
+        p.table_inertia_kg_m2,
+        p.torsional_stiffness_nm_per_rad,
+        p.table_damping_nm_s_per_rad,
+    ];
+    for ((key, bounds), v) in PHYSICAL.iter().zip(values) {
+        if let Some(v) = v {
+            bounds.check(&format!("axes.{axis}.physical.{key}"), v)?;
+        }
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests;

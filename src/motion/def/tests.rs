@@ -1,0 +1,2 @@
+//! Tests of the machine definition: every refusal names its field, every accepted definition
+//! simulates.
