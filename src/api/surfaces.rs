@@ -33,12 +33,17 @@ pub fn routes() -> Router<AppState> {
 /// Largest |‖n‖ − 1| accepted for a normal (normals are then rescaled to unit length).
 pub const NORMAL_TOLERANCE: f64 = 1e-3;
 
+/// Top-level keys of a surface definition (CONTRACT "Surfaces"; `name` as for machines).
+pub const SURFACE_KEYS: [&str; 3] = ["nominal", "tool_radius", "name"];
+
 #[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct Nominal {
     grid: Grid,
 }
 
 #[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct Grid {
     nu: usize,
     nv: usize,
@@ -47,16 +52,38 @@ struct Grid {
 }
 
 /// Parses and validates a surface PUT body into a [`Surface`] plus the extra top-level
-/// fields (kept verbatim). Errors name the field and what to fix.
+/// fields (`name`, kept verbatim unless null). Unknown keys, at the top and in `nominal` and
+/// its `grid`, are refused naming the keys allowed (CONTRACT v1.1). Errors name the field.
 pub fn parse_surface(machine: &str, surface: &str, body: &[u8]) -> ApiResult<(Surface, Value)> {
     let top: BTreeMap<String, Box<RawValue>> = super::extract::decode_json(body)?;
+    if let Some(k) = top.keys().find(|k| !SURFACE_KEYS.contains(&k.as_str())) {
+        return Err(ApiError::bad_request(format!(
+            "unknown key '{k}' in the surface definition: the keys allowed are {}",
+            SURFACE_KEYS.join(", ")
+        )));
+    }
+    if let Some(name) = top.get("name").map(|r| r.get())
+        && name != "null"
+        && !name.starts_with('"')
+    {
+        return Err(ApiError::bad_request("name must be a string"));
+    }
     let nominal = top.get("nominal").ok_or_else(|| {
         ApiError::bad_request(
             "nominal is required: {\"nominal\": {\"grid\": {\"nu\", \"nv\", \"points\", \"normals\"}}}",
         )
     })?;
-    let nominal: Nominal = serde_json::from_str(nominal.get())
-        .map_err(|e| ApiError::bad_request(format!("nominal: {e}")))?;
+    let nominal: Nominal =
+        serde_path_to_error::deserialize(&mut serde_json::Deserializer::from_str(nominal.get()))
+            .map_err(|e| {
+                let path = e.path().to_string();
+                let field = if path == "." {
+                    "nominal".to_string()
+                } else {
+                    format!("nominal.{path}")
+                };
+                ApiError::bad_request(format!("{field}: {}", e.inner()))
+            })?;
     let tool_radius = match top.get("tool_radius").map(|r| r.get()) {
         None | Some("null") => None,
         Some(raw) => {
@@ -72,7 +99,7 @@ pub fn parse_surface(machine: &str, surface: &str, body: &[u8]) -> ApiResult<(Su
     };
     let mut extra = Map::new();
     for (k, v) in &top {
-        if k != "nominal" && k != "tool_radius" {
+        if k != "nominal" && k != "tool_radius" && v.get() != "null" {
             let v: Value = serde_json::from_str(v.get())
                 .map_err(|e| ApiError::bad_request(format!("{k}: {e}")))?;
             extra.insert(k.clone(), v);

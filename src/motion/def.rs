@@ -284,22 +284,80 @@ fn path_error<E: std::fmt::Display>(e: serde_path_to_error::Error<E>) -> Error {
     }
 }
 
+/// Serde's derived structs also read JSON arrays (`[30]` as `{"kv": 30}`); a definition is
+/// objects all the way down, so anything else is refused by name first.
+fn check_objects(value: &Value) -> Result<(), Error> {
+    fn object<'a>(field: &str, v: &'a Value, like: &str) -> Result<Option<&'a Value>, Error> {
+        match v {
+            Value::Null => Ok(None),
+            Value::Object(_) => Ok(Some(v)),
+            other => Err(Error::BadDefinition {
+                field: field.to_string(),
+                message: format!("must be a JSON object like {like}, got {other}"),
+            }),
+        }
+    }
+    let like_def = "{\"kinematics\": \"xyz\", \"axes\": {\"X\": {\"kv\": 30}}}";
+    if !value.is_object() {
+        return Err(Error::BadDefinition {
+            field: "the definition".into(),
+            message: format!("must be a JSON object like {like_def}, got {value}"),
+        });
+    }
+    let top = value;
+    if let Some(g) = top.get("geometry") {
+        object(
+            "geometry",
+            g,
+            "{\"a_axis_origin\": [x, y, z], \"tool_length\": mm}",
+        )?;
+    }
+    let Some(Some(axes)) = top
+        .get("axes")
+        .map(|a| object("axes", a, "{\"X\": {\"kv\": 30}}"))
+        .transpose()?
+    else {
+        return Ok(());
+    };
+    for (name, axis) in axes.as_object().into_iter().flatten() {
+        let field = format!("axes.{name}");
+        if let Some(axis) = object(&field, axis, "{\"kv\": 30}")?
+            && let Some(p) = axis.get("physical")
+        {
+            object(
+                &format!("{field}.physical"),
+                p,
+                "{\"motor_inertia_kg_m2\": 0.001, ...}",
+            )?;
+        }
+    }
+    Ok(())
+}
+
 impl MachineDef {
     /// Parses and validates a definition from JSON bytes (a PUT body). A number JSON cannot
     /// hold (`1e400`) is named by its path like any other refusal.
     pub fn from_slice(bytes: &[u8]) -> Result<MachineDef, Error> {
-        let mut de = serde_json::Deserializer::from_slice(bytes);
-        let def: MachineDef = serde_path_to_error::deserialize(&mut de).map_err(path_error)?;
-        de.end().map_err(|e| Error::BadDefinition {
-            field: "the definition".into(),
-            message: e.to_string(),
-        })?;
-        def.validate()?;
-        Ok(def)
+        match serde_json::from_slice::<Value>(bytes) {
+            Ok(value) => MachineDef::from_value(&value),
+            Err(syntax) => {
+                // Only the typed parse knows where in the tree the bad token sits.
+                let mut de = serde_json::Deserializer::from_slice(bytes);
+                let typed: Result<MachineDef, _> = serde_path_to_error::deserialize(&mut de);
+                Err(match typed {
+                    Err(e) => path_error(e),
+                    Ok(_) => Error::BadDefinition {
+                        field: "the definition".into(),
+                        message: syntax.to_string(),
+                    },
+                })
+            }
+        }
     }
 
     /// Parses and validates a definition from JSON (a stored definition, a CLI file).
     pub fn from_value(value: &Value) -> Result<MachineDef, Error> {
+        check_objects(value)?;
         let def: MachineDef = serde_path_to_error::deserialize(value).map_err(path_error)?;
         def.validate()?;
         Ok(def)
