@@ -8,7 +8,7 @@
 use std::collections::HashMap;
 
 use axum::Router;
-use axum::extract::{Path, Query, State};
+use axum::extract::{Query, State};
 use axum::http::{HeaderMap, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
@@ -20,6 +20,7 @@ use super::error::{ApiError, ApiResult};
 use super::extract::ApiJson;
 use super::lookup::{require_measurement, require_surface};
 use super::measurements::wants_csv;
+use crate::api::id::{Id, PathIds};
 use crate::compensation::{self, CompensatedGrid, CompensatedSurface, compensate_points};
 use crate::signal::{DecomposeParams, Method, decompose};
 
@@ -51,9 +52,9 @@ fn parse<T: std::str::FromStr>(
 /// fresh default (coarse-to-fine) one when none was stored.
 async fn offsets(
     state: &AppState,
-    machine: &str,
-    surface: &str,
-    id: &str,
+    machine: &Id,
+    surface: &Id,
+    id: &Id,
     nu: usize,
     nv: usize,
 ) -> ApiResult<(Vec<f64>, Vec<usize>)> {
@@ -121,7 +122,7 @@ fn csv(grid: &CompensatedGrid) -> String {
 
 async fn get_compensation(
     State(state): State<AppState>,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
     Query(q): Query<HashMap<String, String>>,
     headers: HeaderMap,
 ) -> ApiResult<Response> {
@@ -145,6 +146,7 @@ async fn get_compensation(
         ));
     }
     let surf = require_surface(&state, &machine, &surface).await?;
+    let id = Id::parse("measurement", &id)?;
     let (offs, outliers) = offsets(&state, &machine, &surface, &id, surf.nu, surf.nv).await?;
     let radius = if cl {
         match radius.or(surf.tool_radius) {

@@ -3,7 +3,7 @@
 //! [`crate::wire::contour`]'s (shared with `truecut contour --output`).
 
 use axum::Router;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::http::header;
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
@@ -12,7 +12,8 @@ use serde::Deserialize;
 use super::AppState;
 use super::error::{ApiError, ApiResult};
 use super::extract::ApiJson;
-use super::lookup::require_machine;
+use super::lookup::require_machine_def;
+use crate::api::id::PathIds;
 use crate::motion::{
     DEFAULT_PERIOD_S, check_period, machine_for_simulation, predict_contour_error,
 };
@@ -39,10 +40,10 @@ pub struct ContourRequest {
 
 async fn contour_error(
     State(state): State<AppState>,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
     ApiJson(req): ApiJson<ContourRequest>,
 ) -> ApiResult<Response> {
-    let def = require_machine(&state, &machine).await?;
+    let def = require_machine_def(&state, &machine).await?;
     let period_s = req.period_s.unwrap_or(DEFAULT_PERIOD_S);
     check_period(period_s)?;
     if req.gcode.trim().is_empty() {

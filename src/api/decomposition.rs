@@ -4,7 +4,7 @@
 //! Also the one `From<signal::Error> for ApiError`.
 
 use axum::Router;
-use axum::extract::{Path, Request, State};
+use axum::extract::{Request, State};
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
@@ -16,6 +16,7 @@ use super::auth::RequireWrite;
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, check_finite, decode_json, read_body};
 use super::lookup::{require_measurement, require_surface};
+use crate::api::id::PathIds;
 use crate::signal::{self, DecomposeParams, Method, decompose};
 
 /// Document kind under which a measurement's current decomposition is stored.
@@ -108,7 +109,7 @@ async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResul
 async fn post_measurement_decomposition(
     State(state): State<AppState>,
     _write: RequireWrite,
-    Path((machine, surface, id)): Path<(String, String, String)>,
+    PathIds([machine, surface, id]): PathIds<3>,
     req: Request,
 ) -> ApiResult<Response> {
     let body = read_body(req).await?;
@@ -149,7 +150,7 @@ async fn post_measurement_decomposition(
 
 async fn get_measurement_decomposition(
     State(state): State<AppState>,
-    Path((machine, surface, id)): Path<(String, String, String)>,
+    PathIds([machine, surface, id]): PathIds<3>,
 ) -> ApiResult<ApiJson<Value>> {
     require_measurement(&state, &machine, &surface, &id).await?;
     let key = format!("{surface}/{id}");

@@ -293,7 +293,7 @@ impl From<compensation::Error> for ApiError {
 }
 
 /// G-code and machine problems are the caller's to fix (422 naming line/code or field);
-/// malformed numeric arguments are 400.
+/// malformed numeric arguments and a machine definition refused at PUT are 400.
 impl From<motion::Error> for ApiError {
     fn from(e: motion::Error) -> Self {
         use motion::Error as E;
@@ -310,9 +310,8 @@ impl From<motion::Error> for ApiError {
             E::InvalidServo { .. } | E::UnstableServo { .. } | E::InvalidMachine(_) => {
                 ApiError::unprocessable(format!("machine definition: {e}"))
             }
-            E::NotSimulable { .. } | E::NotAServo { .. } | E::AxisServo { .. } => {
-                ApiError::unprocessable(e.to_string())
-            }
+            E::NotSimulable { .. } => ApiError::unprocessable(e.to_string()),
+            E::BadDefinition { .. } => ApiError::bad_request(e.to_string()),
             E::InvalidPeriod(_)
             | E::PeriodOutOfRange(_)
             | E::InvalidParameter { .. }

@@ -1,4 +1,4 @@
-//! Request extractors and edge validation: `ApiJson` and the `check_*` helpers.
+//! Request extractors and edge validation: `ApiJson` and the `check_*` helpers (ids: `id.rs`).
 
 use axum::body::Bytes;
 use axum::extract::{FromRequest, Request};
@@ -91,24 +91,6 @@ impl<T: Serialize> IntoResponse for ApiJson<T> {
                 ApiError::internal(format!("could not encode the response: {e}")).into_response()
             }
         }
-    }
-}
-
-/// Checks an id from a path or body against `[A-Za-z0-9._-]{1,64}`; `kind` names it in the
-/// error ("machine id 'a b' ...").
-pub fn check_id(kind: &str, id: &str) -> ApiResult<()> {
-    let ok = !id.is_empty()
-        && id.len() <= 64
-        && id
-            .bytes()
-            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'));
-    if ok {
-        Ok(())
-    } else {
-        let shown: String = id.chars().take(80).collect();
-        Err(ApiError::bad_request(format!(
-            "{kind} id '{shown}' is invalid: use 1 to 64 characters from A-Z a-z 0-9 . _ -"
-        )))
     }
 }
 

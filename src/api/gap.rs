@@ -4,7 +4,7 @@
 //! stored (machine, surface, measurement) and chooses between answering and a job.
 
 use axum::Router;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
@@ -13,12 +13,13 @@ use serde_json::{Value, json};
 
 use super::AppState;
 use super::error::{ApiError, ApiResult};
-use super::extract::{ApiJson, check_id};
+use super::extract::ApiJson;
 use super::lookup::{require_machine, require_measurement, require_surface};
+use crate::api::id::{Id, PathIds};
 use crate::gap::{
     self, GapRequest, PartBlock, PartGrid, diagnose_motion_request, motion_inputs, part_answer,
 };
-use crate::motion::servo_axes;
+use crate::motion::{servo_axes, stored_definition};
 
 /// Routes of this resource.
 pub fn routes() -> Router<AppState> {
@@ -42,13 +43,13 @@ struct PartValidationBody {
 
 async fn gap_diagnosis(
     State(state): State<AppState>,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
     ApiJson(req): ApiJson<GapRequest>,
 ) -> ApiResult<Response> {
     let def = require_machine(&state, &machine).await?;
     match req.domain.as_str() {
         "motion" => {
-            let m = servo_axes(&machine, &def)?;
+            let m = servo_axes(&machine, &stored_definition(&machine, &def)?)?;
             let n = req.commanded.as_ref().map_or(0, Vec::len);
             let nv = req
                 .validation
@@ -141,7 +142,7 @@ fn part_block(
     })
 }
 
-async fn diagnose_part_route(state: &AppState, machine: &str, req: GapRequest) -> ApiResult<Value> {
+async fn diagnose_part_route(state: &AppState, machine: &Id, req: GapRequest) -> ApiResult<Value> {
     for (name, present) in [
         ("period_s", req.period_s.is_some()),
         ("commanded", req.commanded.is_some()),
@@ -153,16 +154,16 @@ async fn diagnose_part_route(state: &AppState, machine: &str, req: GapRequest) -
             )));
         }
     }
-    let surface_id = req.surface.clone().ok_or_else(|| {
+    let surface_id = req.surface.as_deref().ok_or_else(|| {
         ApiError::bad_request("surface is missing: give the id of the probed surface")
     })?;
-    let measurement_id = req.measurement.clone().ok_or_else(|| {
+    let surface_id = Id::parse("surface", surface_id)?;
+    let measurement_id = req.measurement.as_deref().ok_or_else(|| {
         ApiError::bad_request(
             "measurement is missing: give the id of an uploaded measurement of that surface",
         )
     })?;
-    check_id("surface", &surface_id)?;
-    check_id("measurement", &measurement_id)?;
+    let measurement_id = Id::parse("measurement", measurement_id)?;
     let surface = require_surface(state, machine, &surface_id).await?;
     let main_m = require_measurement(state, machine, &surface_id, &measurement_id).await?;
     let grid = PartGrid {
@@ -198,7 +199,8 @@ async fn diagnose_part_route(state: &AppState, machine: &str, req: GapRequest) -
                     "validation must be {{\"measurement\": id, \"predicted\"?: [...], \"time\"?: [...], \"approach\"?: [...]}}: {e}"
                 ))
             })?;
-            let vm = require_measurement(state, machine, &surface_id, &body.measurement).await?;
+            let vm_id = Id::parse("validation.measurement", &body.measurement)?;
+            let vm = require_measurement(state, machine, &surface_id, &vm_id).await?;
             Some(part_block(
                 "validation",
                 &grid,

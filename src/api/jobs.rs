@@ -1,12 +1,13 @@
 //! `GET /v1/jobs/{id}`: state, progress and result of a background job.
 
 use axum::Router;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::routing::get;
 
 use super::AppState;
 use super::error::{ApiError, ApiResult};
-use super::extract::{ApiJson, check_id};
+use super::extract::ApiJson;
+use crate::api::id::PathIds;
 use crate::jobs::JobStatus;
 
 /// Routes of this resource.
@@ -16,9 +17,8 @@ pub fn routes() -> Router<AppState> {
 
 async fn get_job(
     State(state): State<AppState>,
-    Path(id): Path<String>,
+    PathIds([id]): PathIds<1>,
 ) -> ApiResult<ApiJson<JobStatus>> {
-    check_id("job", &id)?;
     state
         .jobs
         .status(&id)

@@ -1,14 +1,14 @@
-//! Loading the records a route needs, with the standard 404 sentences.
+//! Loading the records a route needs, with the standard 404 sentences. Ids come in parsed
+//! ([`Id`]), so nothing unchecked reaches the store.
 
 use super::AppState;
 use super::error::{ApiError, ApiResult};
-use super::extract::check_id;
+use super::id::Id;
+use crate::motion::{MachineDef, stored_definition};
 use crate::store::{Measurement, Surface};
 
 /// The machine's stored definition, or 404 "machine 'm1' does not exist: PUT /v1/machines/m1 first".
-/// Also rejects an invalid id with 400.
-pub async fn require_machine(state: &AppState, machine: &str) -> ApiResult<serde_json::Value> {
-    check_id("machine", machine)?;
+pub async fn require_machine(state: &AppState, machine: &Id) -> ApiResult<serde_json::Value> {
     state.store.get_machine(machine).await?.ok_or_else(|| {
         ApiError::not_found(format!(
             "machine '{machine}' does not exist: PUT /v1/machines/{machine} first"
@@ -16,10 +16,15 @@ pub async fn require_machine(state: &AppState, machine: &str) -> ApiResult<serde
     })
 }
 
+/// The machine's stored definition parsed for a simulation: 404 as [`require_machine`], 422
+/// naming the PUT that fixes a definition stored before PUT checked everything.
+pub async fn require_machine_def(state: &AppState, machine: &Id) -> ApiResult<MachineDef> {
+    let def = require_machine(state, machine).await?;
+    Ok(stored_definition(machine, &def)?)
+}
+
 /// The surface, or 404 naming the missing machine or surface and the PUT that creates it.
-pub async fn require_surface(state: &AppState, machine: &str, surface: &str) -> ApiResult<Surface> {
-    check_id("machine", machine)?;
-    check_id("surface", surface)?;
+pub async fn require_surface(state: &AppState, machine: &Id, surface: &Id) -> ApiResult<Surface> {
     if let Some(s) = state.store.get_surface(machine, surface).await? {
         return Ok(s);
     }
@@ -33,13 +38,10 @@ pub async fn require_surface(state: &AppState, machine: &str, surface: &str) -> 
 /// The measurement, or 404 naming what is missing.
 pub async fn require_measurement(
     state: &AppState,
-    machine: &str,
-    surface: &str,
-    id: &str,
+    machine: &Id,
+    surface: &Id,
+    id: &Id,
 ) -> ApiResult<Measurement> {
-    check_id("machine", machine)?;
-    check_id("surface", surface)?;
-    check_id("measurement", id)?;
     if let Some(m) = state.store.get_measurement(machine, surface, id).await? {
         return Ok(m);
     }

@@ -4,7 +4,7 @@
 use std::collections::HashMap;
 
 use axum::Router;
-use axum::extract::{Path, Query, Request, State};
+use axum::extract::{Query, Request, State};
 use axum::http::{HeaderMap, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
@@ -13,9 +13,10 @@ use serde_json::{Value, json};
 use super::AppState;
 use super::auth::{RequireAdmin, RequireWrite};
 use super::error::{ApiError, ApiResult};
-use super::extract::{ApiJson, check_id, content_type, read_body};
+use super::extract::{ApiJson, content_type, read_body};
 use super::lookup::{require_measurement, require_surface};
 use super::upload::{ProbeData, deviations_along_normals, parse_csv_upload, parse_json_upload};
+use crate::api::id::{Id, PathIds};
 use crate::signal::flyers::{FlyerParams, suspects};
 use crate::store::Measurement;
 
@@ -43,12 +44,10 @@ pub fn wants_csv(headers: &HeaderMap) -> bool {
 async fn post_measurement(
     State(state): State<AppState>,
     _write: RequireWrite,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
     Query(query): Query<HashMap<String, String>>,
     req: Request,
 ) -> ApiResult<Response> {
-    check_id("machine", &machine)?;
-    check_id("surface", &surface)?;
     let is_csv = match content_type(req.headers()).as_deref() {
         Some("application/json") => false,
         Some(ct) if ct.starts_with("application/") && ct.ends_with("+json") => false,
@@ -71,11 +70,8 @@ async fn post_measurement(
     .await
     .map_err(ApiError::internal)??;
     let id = match body_id.or_else(|| query.get("id").cloned()) {
-        Some(id) => {
-            check_id("measurement", &id)?;
-            id
-        }
-        None => uuid::Uuid::now_v7().to_string(),
+        Some(id) => Id::parse("measurement", &id)?,
+        None => Id::parse("measurement", &uuid::Uuid::now_v7().to_string())?,
     };
     let surf = require_surface(&state, &machine, &surface).await?;
     let n = surf.nu * surf.nv;
@@ -106,9 +102,9 @@ async fn post_measurement(
         ),
     };
     let m = Measurement::new(
-        id.clone(),
-        machine.clone(),
-        surface.clone(),
+        id.to_string(),
+        machine.to_string(),
+        surface.to_string(),
         deviations,
         points,
     );
@@ -170,7 +166,7 @@ fn flyer_warnings(outliers: &[usize], deviations: &[f64], nu: usize) -> Vec<Stri
 
 async fn get_measurement(
     State(state): State<AppState>,
-    Path((machine, surface, id)): Path<(String, String, String)>,
+    PathIds([machine, surface, id]): PathIds<3>,
     headers: HeaderMap,
 ) -> ApiResult<Response> {
     let m = require_measurement(&state, &machine, &surface, &id).await?;
@@ -207,7 +203,7 @@ async fn get_measurement(
 
 async fn list_measurements(
     State(state): State<AppState>,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
 ) -> ApiResult<ApiJson<Value>> {
     require_surface(&state, &machine, &surface).await?;
     let list = state.store.list_measurements(&machine, &surface).await?;
@@ -217,7 +213,7 @@ async fn list_measurements(
 async fn delete_measurement(
     State(state): State<AppState>,
     _admin: RequireAdmin,
-    Path((machine, surface, id)): Path<(String, String, String)>,
+    PathIds([machine, surface, id]): PathIds<3>,
 ) -> ApiResult<StatusCode> {
     require_measurement(&state, &machine, &surface, &id).await?;
     state

@@ -13,6 +13,7 @@ pub mod error;
 pub mod extract;
 pub mod gap;
 pub mod health;
+pub mod id;
 pub mod jobs;
 pub mod lookup;
 pub mod machines;
@@ -35,8 +36,9 @@ use tower_http::trace::{DefaultOnResponse, TraceLayer};
 
 pub use auth::{RequireAdmin, RequireWrite, Role, Tokens};
 pub use error::{ApiError, ApiResult};
-pub use extract::{ApiJson, check_finite, check_id, check_len, check_points};
-pub use lookup::{require_machine, require_measurement, require_surface};
+pub use extract::{ApiJson, check_finite, check_len, check_points};
+pub use id::{Id, PathIds};
+pub use lookup::{require_machine, require_machine_def, require_measurement, require_surface};
 
 /// Shared state of every handler. Cheap to clone.
 #[derive(Clone)]

@@ -4,7 +4,7 @@
 use std::collections::BTreeMap;
 
 use axum::Router;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
@@ -15,8 +15,9 @@ use serde_json::{Map, Value, json};
 use super::AppState;
 use super::auth::RequireAdmin;
 use super::error::{ApiError, ApiResult};
-use super::extract::{ApiJson, check_id, check_len, check_points};
+use super::extract::{ApiJson, check_len, check_points};
 use super::lookup::{require_machine, require_surface};
+use crate::api::id::PathIds;
 use crate::store::Surface;
 
 /// Routes of this resource.
@@ -32,12 +33,17 @@ pub fn routes() -> Router<AppState> {
 /// Largest |‖n‖ − 1| accepted for a normal (normals are then rescaled to unit length).
 pub const NORMAL_TOLERANCE: f64 = 1e-3;
 
+/// Top-level keys of a surface definition (CONTRACT "Surfaces"; `name` as for machines).
+pub const SURFACE_KEYS: [&str; 3] = ["nominal", "tool_radius", "name"];
+
 #[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct Nominal {
     grid: Grid,
 }
 
 #[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
 struct Grid {
     nu: usize,
     nv: usize,
@@ -46,16 +52,38 @@ struct Grid {
 }
 
 /// Parses and validates a surface PUT body into a [`Surface`] plus the extra top-level
-/// fields (kept verbatim). Errors name the field and what to fix.
+/// fields (`name`, kept verbatim unless null). Unknown keys, at the top and in `nominal` and
+/// its `grid`, are refused naming the keys allowed (CONTRACT v1.1). Errors name the field.
 pub fn parse_surface(machine: &str, surface: &str, body: &[u8]) -> ApiResult<(Surface, Value)> {
     let top: BTreeMap<String, Box<RawValue>> = super::extract::decode_json(body)?;
+    if let Some(k) = top.keys().find(|k| !SURFACE_KEYS.contains(&k.as_str())) {
+        return Err(ApiError::bad_request(format!(
+            "unknown key '{k}' in the surface definition: the keys allowed are {}",
+            SURFACE_KEYS.join(", ")
+        )));
+    }
+    if let Some(name) = top.get("name").map(|r| r.get())
+        && name != "null"
+        && !name.starts_with('"')
+    {
+        return Err(ApiError::bad_request("name must be a string"));
+    }
     let nominal = top.get("nominal").ok_or_else(|| {
         ApiError::bad_request(
             "nominal is required: {\"nominal\": {\"grid\": {\"nu\", \"nv\", \"points\", \"normals\"}}}",
         )
     })?;
-    let nominal: Nominal = serde_json::from_str(nominal.get())
-        .map_err(|e| ApiError::bad_request(format!("nominal: {e}")))?;
+    let nominal: Nominal =
+        serde_path_to_error::deserialize(&mut serde_json::Deserializer::from_str(nominal.get()))
+            .map_err(|e| {
+                let path = e.path().to_string();
+                let field = if path == "." {
+                    "nominal".to_string()
+                } else {
+                    format!("nominal.{path}")
+                };
+                ApiError::bad_request(format!("{field}: {}", e.inner()))
+            })?;
     let tool_radius = match top.get("tool_radius").map(|r| r.get()) {
         None | Some("null") => None,
         Some(raw) => {
@@ -71,7 +99,7 @@ pub fn parse_surface(machine: &str, surface: &str, body: &[u8]) -> ApiResult<(Su
     };
     let mut extra = Map::new();
     for (k, v) in &top {
-        if k != "nominal" && k != "tool_radius" {
+        if k != "nominal" && k != "tool_radius" && v.get() != "null" {
             let v: Value = serde_json::from_str(v.get())
                 .map_err(|e| ApiError::bad_request(format!("{k}: {e}")))?;
             extra.insert(k.clone(), v);
@@ -135,11 +163,9 @@ fn summary(s: &Surface) -> Value {
 async fn put_surface(
     State(state): State<AppState>,
     _admin: RequireAdmin,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
     req: axum::extract::Request,
 ) -> ApiResult<Response> {
-    check_id("machine", &machine)?;
-    check_id("surface", &surface)?;
     if !super::extract::is_json(req.headers()) {
         return Err(ApiError::unsupported_media_type(
             "send the surface with Content-Type: application/json",
@@ -182,7 +208,7 @@ async fn put_surface(
 
 async fn get_surface(
     State(state): State<AppState>,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
 ) -> ApiResult<ApiJson<Value>> {
     let s = require_surface(&state, &machine, &surface).await?;
     let extra = state
@@ -204,7 +230,7 @@ async fn get_surface(
 
 async fn list_surfaces(
     State(state): State<AppState>,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
 ) -> ApiResult<ApiJson<Value>> {
     require_machine(&state, &machine).await?;
     let surfaces = state.store.list_surfaces(&machine).await?;
@@ -214,7 +240,7 @@ async fn list_surfaces(
 async fn delete_surface(
     State(state): State<AppState>,
     _admin: RequireAdmin,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
 ) -> ApiResult<StatusCode> {
     require_surface(&state, &machine, &surface).await?;
     state.store.delete_surface(&machine, &surface).await?;

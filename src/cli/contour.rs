@@ -46,18 +46,12 @@ fn load_machine(args: &Args) -> anyhow::Result<(String, serde_json::Value)> {
             .with_context(|| format!("machine file {} is not valid JSON", path.display()))?;
         return Ok((args.machine.clone(), def));
     }
-    // The service's id rule (api's check_id), so a typo is not looked up in the store.
-    let valid_id = !args.machine.is_empty()
-        && args.machine.len() <= 64
-        && args
-            .machine
-            .bytes()
-            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'));
-    if !valid_id {
+    // The service's id rule, so a typo is not looked up in the store.
+    if !crate::store::is_valid_id(&args.machine) {
         let shown: String = args.machine.chars().take(80).collect();
         bail!(
             "--machine '{}' is neither an existing JSON file nor a valid machine id: machine id \
-             '{shown}' is invalid: use 1 to 64 characters from A-Z a-z 0-9 . _ -",
+             '{shown}' is invalid: use 1 to 64 characters from A-Z a-z 0-9 . _ - (and not '.' or '..')",
             args.machine
         );
     }
@@ -94,6 +88,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let gcode = std::fs::read_to_string(&args.file)
         .with_context(|| format!("reading G-code file {}", args.file.display()))?;
     let (id, def) = load_machine(&args)?;
+    let def = crate::motion::stored_definition(&id, &def)?;
     let machine = crate::motion::machine_for_simulation(&id, &def)?;
     let p = predict_contour_error(&machine, &gcode, args.period_s, args.max_periods)
         .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;

@@ -9,7 +9,7 @@ use anyhow::{Context, bail};
 use serde_json::{Value, json};
 
 use crate::gap::{GapRequest, MotionOptions, diagnose_motion_request, selfcheck};
-use crate::motion::{ServoAxes, servo_axes};
+use crate::motion::{ServoAxes, servo_axes, stored_definition};
 
 /// Sim-to-real gap diagnosis: which unmodelled effect separates the servo simulation from
 /// measured positions, where, and how far the gap shrinks once it is added.
@@ -167,7 +167,8 @@ fn read_machine(path: &PathBuf) -> anyhow::Result<ServoAxes> {
         std::fs::read_to_string(path).with_context(|| format!("reading {}", path.display()))?;
     let def: Value =
         serde_json::from_str(&text).with_context(|| format!("parsing {}", path.display()))?;
-    Ok(servo_axes(&path.display().to_string(), &def)?)
+    let id = path.display().to_string();
+    Ok(servo_axes(&id, &stored_definition(&id, &def)?)?)
 }
 
 type Rows = Vec<Vec<f64>>;

@@ -1,10 +1,11 @@
-//! A stored machine definition (JSON, as `PUT /v1/machines/{id}` keeps it) read for a
-//! simulation: the whole machine ([`machine_for_simulation`]) or just the servo axes X, Y(, Z)
-//! a motion-gap diagnosis needs ([`servo_axes`]); and the interpolation periods a simulation
-//! answers ([`check_period`]). Errors name the machine and the PUT that fixes it.
+//! A checked machine definition ([`MachineDef`]) read for a simulation: the whole machine
+//! ([`machine_for_simulation`]) or just the servo axes X, Y(, Z) a motion-gap diagnosis needs
+//! ([`servo_axes`]); and the interpolation periods a simulation answers ([`check_period`]).
+//! Errors name the machine and the PUT that fixes it.
 
 use serde_json::Value;
 
+use super::def::MachineDef;
 use super::error::Error;
 use super::machine::Machine;
 use super::physical::StructuralMode;
@@ -19,12 +20,23 @@ pub fn check_period(period_s: f64) -> Result<(), Error> {
     }
 }
 
-/// Parses a stored machine definition for simulation ([`Error::NotSimulable`] naming the fix).
-pub fn machine_for_simulation(id: &str, def: &Value) -> Result<Machine, Error> {
-    Machine::from_json(def).map_err(|e| Error::NotSimulable {
+/// Parses a stored machine definition ([`MachineDef::from_value`]). A definition stored before
+/// the service validated everything at PUT may fail: [`Error::NotSimulable`] names the fix.
+pub fn stored_definition(id: &str, def: &Value) -> Result<MachineDef, Error> {
+    MachineDef::from_value(def).map_err(|e| not_simulable(id, e))
+}
+
+fn not_simulable(id: &str, e: Error) -> Error {
+    Error::NotSimulable {
         machine: id.to_string(),
         reason: e.to_string(),
-    })
+    }
+}
+
+/// The simulated machine of a checked definition ([`Error::NotSimulable`] naming the fix when
+/// an axis of the kinematics has no servo).
+pub fn machine_for_simulation(id: &str, def: &MachineDef) -> Result<Machine, Error> {
+    Machine::from_def(def).map_err(|e| not_simulable(id, e))
 }
 
 /// The servo models a motion simulation of a machine uses, per axis in the order X, Y, Z.
@@ -40,45 +52,23 @@ pub struct ServoAxes {
     pub structure: Vec<Option<StructuralMode>>,
 }
 
-/// The X, Y(, Z) servo models of a stored machine definition: the machine model when the
-/// whole definition simulates (physical parameters mapped onto the cascade, structural modes),
-/// otherwise the CONTRACT cascade of just the axes present, so a 2-axis diagnosis needs only
-/// X and Y. [`Error::NotAServo`] or [`Error::AxisServo`] when an axis' servo is invalid.
-pub fn servo_axes(id: &str, def: &Value) -> Result<ServoAxes, Error> {
+/// The X, Y(, Z) servo models of a checked definition, as far as they are given in that order
+/// (so a 2-axis diagnosis needs only X and Y): built by the same rule as the whole machine
+/// ([`AxisDef::build`](super::def::AxisDef::build): physical parameters mapped onto the cascade,
+/// structural modes). Empty when X is absent; the diagnosis then says the machine has no servo.
+pub fn servo_axes(id: &str, def: &MachineDef) -> Result<ServoAxes, Error> {
     let mut out = ServoAxes {
         machine: id.to_string(),
         ..ServoAxes::default()
     };
-    if let Ok(m) = Machine::from_json(def) {
-        for name in ["X", "Y", "Z"] {
-            let Some(a) = m.axes.iter().find(|a| a.name == name) else {
-                break;
-            };
-            out.names.push(name.to_string());
-            out.servo.push(a.servo.clone());
-            out.structure.push(a.structure);
-        }
-        if !out.names.is_empty() {
-            return Ok(out);
-        }
-    }
     for name in ["X", "Y", "Z"] {
-        let Some(v) = def.get("axes").and_then(|a| a.get(name)) else {
+        let Some(a) = def.axes.as_ref().and_then(|a| a.get(name)) else {
             break;
         };
-        let servo: ServoAxis = serde_json::from_value(v.clone()).map_err(|e| Error::NotAServo {
-            machine: id.to_string(),
-            axis: name,
-            reason: e.to_string(),
-        })?;
-        servo.validate().map_err(|e| Error::AxisServo {
-            machine: id.to_string(),
-            axis: name,
-            source: Box::new(e),
-        })?;
+        let axis = a.build(name, false).map_err(|e| not_simulable(id, e))?;
         out.names.push(name.to_string());
-        out.servo.push(servo);
-        out.structure.push(None);
+        out.servo.push(axis.servo);
+        out.structure.push(axis.structure);
     }
     Ok(out)
 }

@@ -91,27 +91,15 @@ pub enum Error {
         /// Why, as the machine model says it.
         reason: String,
     },
-    /// An axis of a stored machine definition is not a servo model at all.
-    #[error(
-        "machine '{machine}' axes.{axis} is not a servo model ({reason}): fix it with PUT /v1/machines/{machine}"
-    )]
-    NotAServo {
-        /// Machine id.
-        machine: String,
-        /// Axis letter.
-        axis: &'static str,
-        /// What the decoder refused.
-        reason: String,
-    },
-    /// An axis' servo model of a stored machine definition is out of range or unstable.
-    #[error("machine '{machine}' axes.{axis}: {source}. Fix it with PUT /v1/machines/{machine}")]
-    AxisServo {
-        /// Machine id.
-        machine: String,
-        /// Axis letter.
-        axis: &'static str,
-        /// The servo's own error.
-        source: Box<Error>,
+    /// A machine definition key is missing, unknown, of the wrong type or out of its range
+    /// (`field` is its JSON path, e.g. `axes.X.kv`; the message names the range or the keys
+    /// allowed).
+    #[error("{field}: {message}")]
+    BadDefinition {
+        /// JSON path of the refused key.
+        field: String,
+        /// What is wrong and what is allowed.
+        message: String,
     },
 }
 

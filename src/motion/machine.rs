@@ -1,18 +1,12 @@
-//! A machine as the motion core sees it, parsed from the stored machine JSON.
-//!
-//! CONTRACT body `{"kinematics": "xyz" | "xyzac_table", "axes": {AXIS: SERVO}}` plus these
-//! optional extension fields (units in the names or stated):
-//! - per axis, beside the servo keys: `"max_vel"` (mm/s or deg/s), `"max_accel"` (mm/s² or
-//!   deg/s²), `"max_jerk"` (mm/s³ or deg/s³), and `"physical"` ([`PhysicalAxis`]);
-//! - top level: `"geometry"` ([`TableGeometry`], xyzac_table only) and `"rapid_mm_min"`.
-//!
-//! Unknown keys are left alone (other capabilities store their own parameters there).
+//! A machine as the motion core simulates it, built from a checked [`MachineDef`] (the stored
+//! machine JSON; its keys, extensions and ranges are documented there).
 
 use serde_json::Value;
 
+use super::def::{KinematicsKind, MachineDef};
 use super::error::Error;
-use super::kinematics::{Kinematics, TableGeometry};
-use super::physical::{PhysicalAxis, StructuralMode};
+use super::kinematics::Kinematics;
+use super::physical::StructuralMode;
 use super::servo::ServoAxis;
 
 /// Velocity, acceleration and jerk caps of one axis used by the interpolator.
@@ -62,146 +56,37 @@ pub struct Machine {
     pub rapid_mm_min: f64,
 }
 
-const AXIS_NAMES: [&str; 5] = ["X", "Y", "Z", "A", "C"];
-
-fn positive(field: String, v: &Value) -> Result<f64, Error> {
-    match v.as_f64() {
-        Some(x) if x.is_finite() && x > 0.0 => Ok(x),
-        _ => Err(Error::InvalidMachine(format!(
-            "{field} must be a positive number, got {v}"
-        ))),
-    }
-}
-
 impl Machine {
-    /// Parses and validates the stored machine definition (see module docs).
+    /// Parses, validates ([`MachineDef::from_value`]) and builds a machine from its JSON.
+    pub fn from_json(def: &Value) -> Result<Machine, Error> {
+        Machine::from_def(&MachineDef::from_value(def)?)
+    }
+
+    /// Builds the simulated machine from a definition that passed [`MachineDef::validate`].
     /// Every axis of the kinematics needs a servo (`kv` at least): a contour prediction
     /// without one would silently assume a perfect axis.
-    pub fn from_json(def: &Value) -> Result<Machine, Error> {
-        let obj = def
-            .as_object()
-            .ok_or_else(|| Error::InvalidMachine("the definition must be a JSON object".into()))?;
-        let kin_name = obj
-            .get("kinematics")
-            .and_then(Value::as_str)
-            .unwrap_or("xyz");
-        let geometry = match obj.get("geometry") {
-            None | Some(Value::Null) => None,
-            Some(g) => Some(
-                serde_json::from_value::<TableGeometry>(g.clone())
-                    .map_err(|e| Error::InvalidMachine(format!("geometry: {e}")))?,
-            ),
-        };
-        let kinematics = match kin_name {
-            "xyz" => {
-                if geometry.is_some() {
-                    return Err(Error::InvalidMachine(
-                        "geometry (table offsets, tool length) applies only to kinematics xyzac_table".into(),
-                    ));
-                }
-                Kinematics::Xyz
-            }
-            "xyzac_table" => {
-                let g = geometry.unwrap_or_default();
-                let finite = g
-                    .a_axis_origin
-                    .iter()
-                    .chain(g.c_axis_origin.iter())
-                    .all(|v| v.is_finite())
-                    && g.tool_length.is_finite();
-                if !finite {
-                    return Err(Error::InvalidMachine(
-                        "geometry values must be finite".into(),
-                    ));
-                }
-                Kinematics::XyzacTable(g)
-            }
-            other => {
-                return Err(Error::InvalidMachine(format!(
-                    "kinematics '{other}' is not supported: use \"xyz\" or \"xyzac_table\""
-                )));
+    pub fn from_def(def: &MachineDef) -> Result<Machine, Error> {
+        let kinematics = match def.kinematics {
+            KinematicsKind::Xyz => Kinematics::Xyz,
+            KinematicsKind::XyzacTable => {
+                Kinematics::XyzacTable(def.geometry.clone().unwrap_or_default())
             }
         };
-        let rapid_mm_min = match obj.get("rapid_mm_min") {
-            None | Some(Value::Null) => 30_000.0,
-            Some(v) => positive("rapid_mm_min".into(), v)?,
-        };
-        let empty = serde_json::Map::new();
-        let axes_obj = match obj.get("axes") {
-            None | Some(Value::Null) => &empty,
-            Some(Value::Object(m)) => m,
-            Some(_) => {
-                return Err(Error::InvalidMachine(
-                    "axes must be an object {AXIS: SERVO}".into(),
-                ));
-            }
-        };
-        let n = kinematics.axis_count();
-        for key in axes_obj.keys() {
-            if !AXIS_NAMES[..n].contains(&key.as_str()) {
-                return Err(Error::InvalidMachine(format!(
-                    "axis '{key}' does not exist on a {kin_name} machine (axes: {})",
-                    AXIS_NAMES[..n].join(", ")
-                )));
-            }
-        }
-        let mut axes = Vec::with_capacity(n);
-        for (i, name) in AXIS_NAMES[..n].iter().enumerate() {
-            let rotary = i >= 3;
-            let a = axes_obj.get(*name).ok_or_else(|| {
+        let mut axes = Vec::new();
+        for (i, name) in def.kinematics.axis_names().iter().enumerate() {
+            let a = def.axes.as_ref().and_then(|a| a.get(name)).ok_or_else(|| {
                 Error::InvalidMachine(format!(
                     "axis {name} has no servo model: PUT the machine with axes.{name} = {{\"kv\": ...}}"
                 ))
             })?;
-            axes.push(parse_axis(name, a, rotary)?);
+            axes.push(a.build(name, i >= 3)?);
         }
         Ok(Machine {
             kinematics,
             axes,
-            rapid_mm_min,
+            rapid_mm_min: def.rapid_mm_min.unwrap_or(30_000.0),
         })
     }
-}
-
-fn parse_axis(name: &'static str, a: &Value, rotary: bool) -> Result<MachineAxis, Error> {
-    let mut servo: ServoAxis = serde_json::from_value(a.clone())
-        .map_err(|e| Error::InvalidMachine(format!("axes.{name}: {e}")))?;
-    let mut limits = if rotary {
-        AxisLimits::ROTARY_DEFAULT
-    } else {
-        AxisLimits::LINEAR_DEFAULT
-    };
-    for (key, slot) in [
-        ("max_vel", &mut limits.max_vel),
-        ("max_accel", &mut limits.max_accel),
-        ("max_jerk", &mut limits.max_jerk),
-    ] {
-        if let Some(v) = a.get(key).filter(|v| !v.is_null()) {
-            *slot = positive(format!("axes.{name}.{key}"), v)?;
-        }
-    }
-    let mut structure = None;
-    if let Some(p) = a.get("physical").filter(|v| !v.is_null()) {
-        let phys: PhysicalAxis = serde_json::from_value(p.clone())
-            .map_err(|e| Error::InvalidMachine(format!("axes.{name}.physical: {e}")))?;
-        let named = |e: Error| Error::InvalidMachine(format!("axes.{name}: {e}"));
-        if servo.kp_v.is_none() {
-            servo.kp_v = phys.kp_v(rotary).map_err(named)?;
-        }
-        if servo.tc.is_none() {
-            servo.tc = phys.tc().map_err(named)?;
-        }
-        structure = phys.structural_mode(rotary).map_err(named)?;
-    }
-    servo
-        .validate()
-        .map_err(|e| Error::InvalidMachine(format!("axes.{name}: {e}")))?;
-    Ok(MachineAxis {
-        name,
-        servo,
-        limits,
-        structure,
-    })
 }
 
 #[cfg(test)]

@@ -3,6 +3,7 @@
 //! schema `Servo`, Zhang & Chen 2025 §3), physical drive parameters, and contour error.
 pub mod axes;
 pub mod contour;
+pub mod def;
 pub mod error;
 pub mod gcode;
 pub mod interpolate;
@@ -15,8 +16,9 @@ pub mod program;
 pub mod rk4;
 pub mod servo;
 
-pub use axes::{ServoAxes, check_period, machine_for_simulation, servo_axes};
+pub use axes::{ServoAxes, check_period, machine_for_simulation, servo_axes, stored_definition};
 pub use contour::{ContourReport, contour_error};
+pub use def::{AxesDef, AxisDef, KinematicsKind, MachineDef};
 pub use error::Error;
 pub use gcode::{Program, parse};
 pub use interpolate::{Corner, DEFAULT_PERIOD_S, Trajectory, interpolate};

@@ -20,5 +20,5 @@ pub use database::{Backend, Store};
 pub use jobs::JobRecord;
 pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};
-pub use models::{MODEL_FORMAT_VERSION, ModelStore};
+pub use models::{MODEL_FORMAT_VERSION, ModelStore, is_valid_id};
 pub use surfaces::{Surface, SurfaceSummary};

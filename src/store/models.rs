@@ -30,15 +30,20 @@ pub struct ModelStore {
     db: AnyPool,
 }
 
-/// A path component must be an id (`[A-Za-z0-9._-]{1,64}`, not `.` or `..`).
-fn check_component(what: &str, s: &str) -> Result<()> {
-    let ok = !s.is_empty()
+/// True when `s` can name a record and a file: `[A-Za-z0-9._-]{1,64}`, and not `.` or `..`
+/// (which name directories). The one id rule of the service: the HTTP `Id` and the CLI use it.
+pub fn is_valid_id(s: &str) -> bool {
+    !s.is_empty()
         && s.len() <= 64
         && s != "."
         && s != ".."
         && s.bytes()
-            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'));
-    if !ok {
+            .all(|b| b.is_ascii_alphanumeric() || matches!(b, b'.' | b'_' | b'-'))
+}
+
+/// A path component must be an id ([`is_valid_id`]).
+fn check_component(what: &str, s: &str) -> Result<()> {
+    if !is_valid_id(s) {
         bail!("model {what} '{s}' is not a valid id");
     }
     Ok(())

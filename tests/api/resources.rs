@@ -5,13 +5,18 @@ use crate::helpers::*;
 use serde_json::{Value, json};
 
 async fn machine_crud(app: TestApp) {
+    // v1.0 kept unknown keys; v1.1 refuses them (CONTRACT "Definitions are validated when
+    // stored"), so the extension keys here are the ones the service knows.
     let def = json!({"name": "DMU 50", "kinematics": "xyzac_table",
-        "axes": {"X": {"kv": 30.0, "kff": 0.8, "inertia_kg": 120.0}, "C": {"kv": 20.0}},
-        "geometry": {"c_offset": [0.0, 0.0, 100.0]}});
+        "axes": {"X": {"kv": 30.0, "kff": 0.8, "max_accel": 2000.0,
+                       "physical": {"motor_inertia_kg_m2": 0.001, "velocity_gain_nm_s_per_rad": 0.5,
+                                    "lead_mm": 10.0, "table_mass_kg": 120.0}},
+                 "C": {"kv": 20.0}},
+        "geometry": {"c_axis_origin": [0.0, 0.0, 100.0]}, "rapid_mm_min": 24000.0});
     let r = app.put_json("/v1/machines/m1", &def).await;
     assert_eq!(r.status(), 201);
     assert_eq!(r.headers()["location"], "/v1/machines/m1");
-    // Stored exactly as PUT, unknown fields included.
+    // Stored exactly as PUT, extension keys included.
     let got: Value = app.get("/v1/machines/m1").await.json().await.unwrap();
     assert_eq!(got, def);
     let def2 = json!({"kinematics": "xyz"});
@@ -508,3 +513,264 @@ async fn bad_input(app: TestApp) {
     .await;
 }
 on_both_backends!(bad_input);
+
+/// Machine definitions the service accepts (the CONTRACT body and every extension).
+fn accepted_machines() -> Vec<Value> {
+    let full = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    vec![
+        machine_xyz(),
+        json!({"name": "Demo 3-axis vertical mill", "kinematics": "xyz",
+               "axes": {"X": full, "Y": full, "Z": full}}),
+        json!({"kinematics": "xyz", "rapid_mm_min": 20000,
+               "axes": {"X": {"kv": 30, "max_vel": 1e6, "max_accel": 1e7, "max_jerk": 1e10},
+                        "Y": {"kv": 10000}, "Z": {"kv": 0.5, "kff": 1}}}),
+        json!({"kinematics": "xyzac_table",
+               "geometry": {"a_axis_origin": [0, 0, -100], "c_axis_origin": [0, 0, -100], "tool_length": 80},
+               "axes": {
+                   "X": {"kv": 30, "physical": {"motor_inertia_kg_m2": 0.001, "velocity_gain_nm_s_per_rad": 0.5,
+                         "current_bandwidth_hz": 1000, "lead_mm": 10, "table_mass_kg": 200,
+                         "axial_stiffness_n_per_um": 150}},
+                   "Y": {"kv": 30}, "Z": {"kv": 30}, "A": {"kv": 20},
+                   "C": {"kv": 20, "physical": {"motor_inertia_kg_m2": 0.002, "velocity_gain_nm_s_per_rad": 1.0,
+                         "gear_ratio": 90, "table_inertia_kg_m2": 2.0}}}}),
+    ]
+}
+
+/// Machine definitions a simulation would refuse, each with the field the 400 must name.
+fn refused_machines() -> Vec<(Value, Vec<&'static str>)> {
+    let x = |servo: Value| json!({"kinematics": "xyz", "axes": {"X": servo}});
+    vec![
+        (
+            json!({"kinematics": "xyz", "colour": "red"}),
+            vec!["colour", "kinematics", "axes"],
+        ),
+        (
+            x(json!({"kv": 30, "inertia_kg": 120})),
+            vec!["axes.X", "inertia_kg", "kp_v"],
+        ),
+        (x(json!({"kv": 0})), vec!["axes.X.kv", "> 0"]),
+        (x(json!({"kv": 1e300})), vec!["axes.X.kv", "10000"]),
+        (x(json!({"kv": 20000})), vec!["axes.X.kv", "10000"]),
+        (x(json!({"kv": 30, "kff": 1.5})), vec!["axes.X.kff", "0..1"]),
+        (x(json!({"kv": 30, "tc": -0.001})), vec!["axes.X.tc"]),
+        (x(json!({"kv": 30, "kp_v": 1e9})), vec!["axes.X.kp_v"]),
+        (
+            x(json!({"kv": 30, "max_jerk": -1})),
+            vec!["axes.X.max_jerk"],
+        ),
+        (
+            x(json!({"kv": 9000, "kp_v": 90000, "ti_v": 0.00001, "tc": 0.1})),
+            vec!["axes.X", "unstable"],
+        ),
+        (
+            x(json!({"kv": 30, "physical": {"motor_inertia_kg_m2": 0.001, "friction": 3}})),
+            vec!["axes.X.physical", "friction", "lead_mm"],
+        ),
+        (
+            x(
+                json!({"kv": 30, "physical": {"motor_inertia_kg_m2": 0.001, "velocity_gain_nm_s_per_rad": 0.5}}),
+            ),
+            vec!["axes.X", "lead_mm"],
+        ),
+        (
+            json!({"kinematics": "xyz", "axes": {"A": {"kv": 1.0}}}),
+            vec!["axes.A", "X, Y, Z"],
+        ),
+        (
+            json!({"kinematics": "xyz", "geometry": {"tool_length": 80}}),
+            vec!["geometry", "xyzac_table"],
+        ),
+        (
+            json!({"kinematics": "xyzac_table", "geometry": {"c_offset": [0, 0, 100]}}),
+            vec!["geometry", "c_offset", "c_axis_origin"],
+        ),
+        (
+            json!({"kinematics": "xyz", "rapid_mm_min": -1}),
+            vec!["rapid_mm_min"],
+        ),
+        (json!({"kinematics": "xyz", "name": 5}), vec!["name"]),
+    ]
+}
+
+async fn machine_definitions_are_validated_when_stored(app: TestApp) {
+    for (def, fields) in refused_machines() {
+        assert_problem(app.put_json("/v1/machines/m9", &def).await, 400, &fields).await;
+    }
+    // A number JSON cannot hold is named by its path, not just by line and column.
+    let r = app
+        .client
+        .put(app.url("/v1/machines/m9"))
+        .header("content-type", "application/json")
+        .body(r#"{"kinematics": "xyz", "axes": {"X": {"kv": 1e400}}}"#)
+        .send()
+        .await
+        .unwrap();
+    assert_problem(r, 400, &["axes.X.kv"]).await;
+    assert_eq!(app.get("/v1/machines/m9").await.status(), 404);
+    // Null-valued optional keys are not stored or echoed (they would break the schema).
+    let r = app
+        .put_json(
+            "/v1/machines/n",
+            &json!({"name": null, "kinematics": "xyz", "axes": {"X": {"kv": 30, "kff": null}}}),
+        )
+        .await;
+    assert_eq!(r.status(), 201);
+    let clean = json!({"kinematics": "xyz", "axes": {"X": {"kv": 30}}});
+    assert_eq!(r.json::<Value>().await.unwrap(), clean);
+    assert_eq!(
+        app.get("/v1/machines/n")
+            .await
+            .json::<Value>()
+            .await
+            .unwrap(),
+        clean
+    );
+}
+on_both_backends!(machine_definitions_are_validated_when_stored);
+
+/// PUT refuses every machine definition that a simulation would refuse: every definition PUT
+/// accepts answers a contour and a motion-gap diagnosis.
+async fn accepted_machines_simulate(app: TestApp) {
+    let rows: Vec<Vec<f64>> = (0..300)
+        .map(|i| {
+            let t = i as f64 * 0.001;
+            vec![20.0 * t, 10.0 * t]
+        })
+        .collect();
+    for (k, def) in accepted_machines().into_iter().enumerate() {
+        let url = format!("/v1/machines/a{k}");
+        let r = app.put_json(&url, &def).await;
+        assert_eq!(r.status(), 201, "{def}");
+        let r = app
+            .post_json(
+                &format!("{url}/contour-error"),
+                &json!({"gcode": "G1 X1 Y1 F600"}),
+            )
+            .await;
+        assert_eq!(r.status(), 200, "{def}: {}", r.text().await.unwrap());
+        let r = app
+            .post_json(
+                &format!("{url}/gap-diagnosis"),
+                &json!({"domain": "motion", "period_s": 0.001, "commanded": rows, "measured": rows}),
+            )
+            .await;
+        assert_eq!(r.status(), 200, "{def}: {}", r.text().await.unwrap());
+    }
+}
+on_both_backends!(accepted_machines_simulate);
+
+/// Sends one raw HTTP/1.1 request (no client-side URL normalization of `.` and `..`) and
+/// returns the status code.
+async fn raw_status(app: &TestApp, method: &str, path: &str, body: &str) -> u16 {
+    use tokio::io::{AsyncReadExt, AsyncWriteExt};
+    let host = app.addr.trim_start_matches("http://");
+    let mut stream = tokio::net::TcpStream::connect(host).await.unwrap();
+    let req = format!(
+        "{method} {path} HTTP/1.1\r\nHost: {host}\r\nContent-Type: application/json\r\n\
+         Content-Length: {}\r\nConnection: close\r\n\r\n{body}",
+        body.len()
+    );
+    stream.write_all(req.as_bytes()).await.unwrap();
+    let mut answer = Vec::new();
+    stream.read_to_end(&mut answer).await.unwrap();
+    let text = String::from_utf8_lossy(&answer);
+    let status = text.split_whitespace().nth(1).unwrap().parse().unwrap();
+    if status == 400 {
+        // Our problem+json naming the id, not a refusal of the request line.
+        assert!(text.contains("id '.") && text.contains("'.'"), "{text}");
+    }
+    status
+}
+
+async fn dot_ids_are_refused(app: TestApp) {
+    seed_machine_and_surface(&app, "m", "s", 2, 2).await;
+    let machine = machine_xyz().to_string();
+    for id in ["..", "%2E%2E", ".", "%2e"] {
+        assert_eq!(
+            raw_status(&app, "PUT", &format!("/v1/machines/{id}"), &machine).await,
+            400,
+            "{id}"
+        );
+        assert_eq!(
+            raw_status(&app, "GET", &format!("/v1/machines/{id}"), "").await,
+            400,
+            "{id}"
+        );
+        let surface = flat_surface(2, 2).to_string();
+        let path = format!("/v1/machines/m/surfaces/{id}");
+        assert_eq!(raw_status(&app, "PUT", &path, &surface).await, 400, "{id}");
+        let path = format!("/v1/machines/m/surfaces/s/measurements/{id}");
+        assert_eq!(raw_status(&app, "GET", &path, "").await, 400, "{id}");
+        assert_eq!(
+            raw_status(&app, "GET", &format!("/v1/jobs/{id}"), "").await,
+            400,
+            "{id}"
+        );
+    }
+    assert_problem(
+        app.get("/v1/machines/%2E%2E%2E%2E").await,
+        404,
+        &["machine '....' does not exist"],
+    )
+    .await;
+    // Ids in bodies and queries follow the same rule.
+    let up = "/v1/machines/m/surfaces/s/measurements";
+    assert_problem(
+        app.post_json(
+            &format!("{up}?id=.."),
+            &json!({"deviations": [0.0, 0.0, 0.0, 0.0]}),
+        )
+        .await,
+        400,
+        &["measurement id '..'"],
+    )
+    .await;
+    assert_problem(
+        app.get("/v1/machines/m/surfaces/s/compensation?measurement=..")
+            .await,
+        400,
+        &["measurement id '..'"],
+    )
+    .await;
+}
+on_both_backends!(dot_ids_are_refused);
+
+async fn surface_definitions_refuse_unknown_keys(app: TestApp) {
+    assert_eq!(
+        app.put_json("/v1/machines/m", &machine_xyz())
+            .await
+            .status(),
+        201
+    );
+    let mut s = flat_surface(2, 2);
+    s["colour"] = json!("red");
+    assert_problem(
+        app.put_json("/v1/machines/m/surfaces/t", &s).await,
+        400,
+        &["colour", "nominal", "tool_radius", "name"],
+    )
+    .await;
+    let mut s = flat_surface(2, 2);
+    s["nominal"]["grid"]["spacing"] = json!(1.0);
+    assert_problem(
+        app.put_json("/v1/machines/m/surfaces/t", &s).await,
+        400,
+        &["nominal.grid", "spacing", "normals"],
+    )
+    .await;
+    let mut s = flat_surface(2, 2);
+    s["nominal"]["cad"] = json!("x.step");
+    assert_problem(
+        app.put_json("/v1/machines/m/surfaces/t", &s).await,
+        400,
+        &["nominal", "cad", "grid"],
+    )
+    .await;
+    let mut s = flat_surface(2, 2);
+    s["name"] = json!("pocket floor");
+    assert_eq!(
+        app.put_json("/v1/machines/m/surfaces/t", &s).await.status(),
+        201
+    );
+}
+on_both_backends!(surface_definitions_refuse_unknown_keys);

@@ -4,7 +4,7 @@
 //! and saves the model files through `store`.
 
 use axum::body::Bytes;
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
@@ -15,7 +15,8 @@ use super::samples::PlanWithOptionalRadius;
 use crate::api::AppState;
 use crate::api::auth::RequireAdmin;
 use crate::api::error::{ApiError, ApiResult};
-use crate::api::extract::{ApiJson, check_id};
+use crate::api::extract::ApiJson;
+use crate::api::id::{Id, PathIds};
 use crate::api::lookup::{require_machine, require_surface};
 use crate::geometry::{StepErrorSegment, StepFeatures, grid_segments};
 use crate::nn::{self, Init, Regressor, TrainConfig};
@@ -98,14 +99,14 @@ async fn load_model(
 pub(super) async fn train(
     State(state): State<AppState>,
     _admin: RequireAdmin,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
     ApiJson(req): ApiJson<TrainRequest>,
 ) -> ApiResult<impl IntoResponse> {
     let stored = require_surface(&state, &machine, &surface).await?;
     let base = match &req.base {
         Some(b) => {
-            check_id("base.machine", &b.machine)?;
-            check_id("base.surface", &b.surface)?;
+            Id::parse("base.machine", &b.machine)?;
+            Id::parse("base.surface", &b.surface)?;
             Some(load_model(&state, &b.machine, &b.surface).await.map_err(|e| {
                 if e.status() == StatusCode::NOT_FOUND {
                     ApiError::not_found(format!(
@@ -263,7 +264,7 @@ pub(super) async fn train(
 
 pub(super) async fn model_info(
     State(state): State<AppState>,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
 ) -> ApiResult<ApiJson<Value>> {
     require_surface(&state, &machine, &surface).await?;
     let (reg, meta) = load_model(&state, &machine, &surface).await?;
@@ -289,12 +290,10 @@ struct PredictAnswer<'a> {
 
 pub(super) async fn predict(
     State(state): State<AppState>,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
     headers: HeaderMap,
     body: Bytes,
 ) -> ApiResult<Response> {
-    check_id("machine", &machine)?;
-    check_id("surface", &surface)?;
     require_machine(&state, &machine).await?;
     require_surface(&state, &machine, &surface).await?;
     let (reg, meta) = load_model(&state, &machine, &surface).await?;

@@ -1,7 +1,7 @@
 //! `POST /v1/step-error/samples` and `POST .../step-error-samples`: exactly labelled segments
 //! from an analytic height surface or a stored nominal grid (training data for the network).
 
-use axum::extract::{Path, State};
+use axum::extract::State;
 use axum::response::Response;
 use serde::{Deserialize, Serialize};
 
@@ -10,6 +10,7 @@ use super::exact::{check_tool_radius, json_response};
 use crate::api::AppState;
 use crate::api::error::{ApiError, ApiResult};
 use crate::api::extract::ApiJson;
+use crate::api::id::PathIds;
 use crate::api::lookup::require_surface;
 use crate::geometry::{
     self, HeightSurface, PathPlan, StepErrorSegment, grid_segments, height_surface_segments,
@@ -134,7 +135,7 @@ pub(super) async fn samples(
 
 pub(super) async fn surface_samples(
     State(state): State<AppState>,
-    Path((machine, surface)): Path<(String, String)>,
+    PathIds([machine, surface]): PathIds<2>,
     ApiJson(req): ApiJson<SurfaceSamplesRequest>,
 ) -> ApiResult<Response> {
     let s = require_surface(&state, &machine, &surface).await?;

@@ -3,7 +3,7 @@
 
 use std::collections::HashMap;
 
-use axum::extract::{Path, Query, Request, State};
+use axum::extract::{Query, Request, State};
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
@@ -15,7 +15,8 @@ use super::request::{
 use crate::api::AppState;
 use crate::api::auth::RequireAdmin;
 use crate::api::error::{ApiError, ApiResult};
-use crate::api::extract::{ApiJson, check_id, check_points, content_type, decode_json, read_body};
+use crate::api::extract::{ApiJson, check_points, content_type, decode_json, read_body};
+use crate::api::id::{Id, PathIds};
 use crate::api::lookup::require_machine;
 use crate::volumetric::{self, TableSpec, VolumetricData, VolumetricMap};
 
@@ -25,7 +26,7 @@ pub const MODEL_KIND: &str = "volumetric_map";
 /// The map stored for `machine`, if any (after checking the machine exists). For other
 /// capabilities: the gap diagnosis predicts a part's deviation with
 /// [`VolumetricMap::error_at`] or [`volumetric::normal_deviation`].
-pub async fn load_map(state: &AppState, machine: &str) -> ApiResult<Option<VolumetricMap>> {
+pub async fn load_map(state: &AppState, machine: &Id) -> ApiResult<Option<VolumetricMap>> {
     require_machine(state, machine).await?;
     match state.store.models().load(machine, None, MODEL_KIND).await? {
         Some(bytes) => Ok(Some(VolumetricMap::from_bytes(&bytes)?)),
@@ -33,7 +34,7 @@ pub async fn load_map(state: &AppState, machine: &str) -> ApiResult<Option<Volum
     }
 }
 
-async fn require_map(state: &AppState, machine: &str) -> ApiResult<VolumetricMap> {
+async fn require_map(state: &AppState, machine: &Id) -> ApiResult<VolumetricMap> {
     load_map(state, machine).await?.ok_or_else(|| {
         ApiError::not_found(format!(
             "machine '{machine}' has no volumetric map: PUT /v1/machines/{machine}/volumetric-map first"
@@ -44,11 +45,10 @@ async fn require_map(state: &AppState, machine: &str) -> ApiResult<VolumetricMap
 pub(super) async fn put_map(
     State(state): State<AppState>,
     _admin: RequireAdmin,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
     Query(query): Query<HashMap<String, String>>,
     req: Request,
 ) -> ApiResult<Response> {
-    check_id("machine", &machine)?;
     let is_csv = match content_type(req.headers()).as_deref() {
         Some("application/json") => false,
         Some(ct) if ct.starts_with("application/") && ct.ends_with("+json") => false,
@@ -156,7 +156,7 @@ pub(super) async fn put_map(
 
 pub(super) async fn get_map(
     State(state): State<AppState>,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
     Query(query): Query<HashMap<String, String>>,
 ) -> ApiResult<ApiJson<serde_json::Value>> {
     let samples: usize = parse_query(&query, "samples")?.unwrap_or(21);
@@ -182,7 +182,7 @@ pub(super) async fn get_map(
 pub(super) async fn delete_map(
     State(state): State<AppState>,
     _admin: RequireAdmin,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
 ) -> ApiResult<StatusCode> {
     require_map(&state, &machine).await?;
     state
@@ -195,10 +195,9 @@ pub(super) async fn delete_map(
 
 pub(super) async fn predict(
     State(state): State<AppState>,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
     ApiJson(req): ApiJson<PredictRequest>,
 ) -> ApiResult<ApiJson<PredictResponse>> {
-    check_id("machine", &machine)?;
     check_points("points", &req.points)?;
     if req.points.len() > MAX_POINTS {
         return Err(ApiError::payload_too_large(format!(
@@ -218,7 +217,7 @@ pub(super) async fn predict(
 
 pub(super) async fn table(
     State(state): State<AppState>,
-    Path(machine): Path<String>,
+    PathIds([machine]): PathIds<1>,
     Query(query): Query<HashMap<String, String>>,
 ) -> ApiResult<Response> {
     const KNOWN: [&str; 4] = ["points", "min", "max", "max_points_per_axis"];
