@@ -33,7 +33,7 @@ pub fn routes() -> Router<AppState> {
 /// Largest |‖n‖ − 1| accepted for a normal (normals are then rescaled to unit length).
 pub const NORMAL_TOLERANCE: f64 = 1e-3;
 
-/// Top-level keys of a surface definition (CONTRACT "Surfaces"; `name` as for machines).
+/// Top-level keys of a surface definition (HTTP contract "Surfaces", openapi.yaml schema `SurfaceDefinition`; `name` as for machines).
 pub const SURFACE_KEYS: [&str; 3] = ["nominal", "tool_radius", "name"];
 
 #[derive(Deserialize)]
@@ -53,7 +53,7 @@ struct Grid {
 
 /// Parses and validates a surface PUT body into a [`Surface`] plus the extra top-level
 /// fields (`name`, kept verbatim unless null). Unknown keys, at the top and in `nominal` and
-/// its `grid`, are refused naming the keys allowed (CONTRACT v1.1). Errors name the field.
+/// its `grid`, are refused naming the keys allowed (HTTP contract v1.1, docs/REFERENCES.md). Errors name the field.
 pub fn parse_surface(machine: &str, surface: &str, body: &[u8]) -> ApiResult<(Surface, Value)> {
     let top: BTreeMap<String, Box<RawValue>> = super::extract::decode_json(body)?;
     if let Some(k) = top.keys().find(|k| !SURFACE_KEYS.contains(&k.as_str())) {

@@ -46,7 +46,7 @@ pub struct ServoAxes {
     pub machine: String,
     /// Axis letters.
     pub names: Vec<String>,
-    /// CONTRACT cascade per axis.
+    /// servo cascade (openapi.yaml schema `Servo`) per axis.
     pub servo: Vec<ServoAxis>,
     /// Structural mode per axis (from the definition's "physical" parameters), if any.
     pub structure: Vec<Option<StructuralMode>>,

@@ -1,6 +1,6 @@
 //! The machine definition as PUT stores it, parsed once into a checked type: [`MachineDef`].
 //!
-//! Body of `PUT /v1/machines/{id}` (CONTRACT "Machines", "Servo model"):
+//! Body of `PUT /v1/machines/{id}` (HTTP contract "Machines", "Servo model"; openapi.yaml schemas `Machine`, `Servo`):
 //! `{"name"?: str, "kinematics": "xyz" | "xyzac_table", "axes"?: {AXIS: SERVO},
 //! "geometry"?: {...}, "rapid_mm_min"?: mm/min}`, where SERVO is the normalized cascade
 //! `{"kv", "kff"?, "kp_v"?, "ti_v"?, "tc"?}` plus the extensions `"max_vel"`, `"max_accel"`,
@@ -9,11 +9,11 @@
 //! Why one type: the service used to check a definition three times with three rule sets (at
 //! PUT, for a contour, for a gap diagnosis), so PUT stored what a simulation later refused.
 //! Now every rule a simulation applies lives in [`MachineDef::validate`], which the parsers
-//! run, and every simulation builds its [`Machine`](super::Machine) from a `MachineDef` (CONTRACT
+//! run, and every simulation builds its [`Machine`](super::Machine) from a `MachineDef` (HTTP contract
 //! v1.1 "Definitions are validated when stored, not when used"). Unknown keys are refused by
 //! serde with the key and the keys allowed; the JSON path of any refusal comes from
 //! `serde_path_to_error`. The one thing a simulation may still refuse is an axis that is
-//! absent: `axes` is optional in the CONTRACT (a machine may carry only surfaces or a
+//! absent: `axes` is optional in the HTTP contract (a machine may carry only surfaces or a
 //! volumetric map), and a contour needs every axis of its kinematics.
 
 use serde::{Deserialize, Serialize};
@@ -130,7 +130,7 @@ impl AxesDef {
     }
 }
 
-/// One axis: the CONTRACT cascade (units: 1/s for gains, s for times), limits, physical drive.
+/// One axis: the servo cascade of openapi.yaml schema `Servo` (units: 1/s for gains, s for times), limits, physical drive.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(
     deny_unknown_fields,

@@ -42,6 +42,8 @@ pub struct MachineAxis {
     pub name: &'static str,
     /// The normalized cascade, with `kp_v`/`tc` filled from `physical` when absent.
     pub servo: ServoAxis,
+    /// Velocity, acceleration and jerk caps the interpolator plans with (mm/s, mm/s², mm/s³
+    /// or deg/s, deg/s², deg/s³).
     pub limits: AxisLimits,
     /// Table compliance after the cascade (from `physical`), if a stiffness is given.
     pub structure: Option<StructuralMode>,
@@ -50,7 +52,9 @@ pub struct MachineAxis {
 /// A machine: kinematics, axes in the order X, Y, Z[, A, C], rapid rate.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Machine {
+    /// The kinematic chain (`xyz`, or `xyzac_table` with its table geometry).
     pub kinematics: Kinematics,
+    /// The axes in the order X, Y, Z[, A, C], one per column of a trajectory.
     pub axes: Vec<MachineAxis>,
     /// G0 rate along the path, mm/min (each axis still capped by its `max_vel`).
     pub rapid_mm_min: f64,

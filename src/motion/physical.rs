@@ -1,4 +1,5 @@
-//! Seed 003's physical feed-drive parameters mapped onto the normalized CONTRACT cascade.
+//! Zhang & Chen 2025's physical feed-drive parameters mapped onto the normalized servo cascade
+//! (openapi.yaml schema `Servo`).
 //!
 //! Seed 003 §3.2 models a ball-screw axis as motor inertia `Jm`, lead `l`, table mass `Mt`,
 //! nut/table stiffness `Kj`, screw torsional stiffness `Ks`, table damping `Bt` (eq. 8) with
@@ -56,7 +57,7 @@ pub struct PhysicalAxis {
 }
 
 /// A lightly damped second-order structural mode `ωn²/(s² + 2ζωn s + ωn²)` between motor-side
-/// and table position. Reference: seed 003 eq. 10 with `ωn = √(K/M)`, `ζ = B/(2√(KM))`.
+/// and table position. Reference: Zhang & Chen 2025 eq. 10 with `ωn = √(K/M)`, `ζ = B/(2√(KM))`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct StructuralMode {
     /// Natural frequency, rad/s.
@@ -86,7 +87,7 @@ impl PhysicalAxis {
     }
 
     /// Equivalent inertia at the motor `J_eq`, kg·m²: `Jm + Mt (l/2π)²` (linear, l in m) or
-    /// `Jm + Jt/N²` (rotary). Reference: seed 003 eq. 8 (rigid transmission).
+    /// `Jm + Jt/N²` (rotary). Reference: Zhang & Chen 2025 eq. 8 (rigid transmission).
     pub fn equivalent_inertia(&self, rotary: bool) -> Result<f64, Error> {
         check_pos("motor_inertia_kg_m2", Some(self.motor_inertia_kg_m2))?;
         if rotary {
@@ -121,7 +122,7 @@ impl PhysicalAxis {
     }
 
     /// Equivalent stiffness `K`, N/m (linear) or N·m/rad (rotary), if any stiffness is given.
-    /// Linear: `K = 1/(1/Kj + l²/(4π² Ks))` (seed 003 eq. 9); a missing term counts as rigid.
+    /// Linear: `K = 1/(1/Kj + l²/(4π² Ks))` (Zhang & Chen 2025 eq. 9); a missing term counts as rigid.
     pub fn equivalent_stiffness(&self, rotary: bool) -> Result<Option<f64>, Error> {
         if rotary {
             return check_pos(

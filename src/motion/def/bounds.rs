@@ -58,7 +58,7 @@ impl Bounds {
 }
 
 /// Position-loop gain `kv`: (0, 10000] 1/s. Real feed drives run 10–100 1/s; the bound is the
-/// CONTRACT's example of a physical range, and keeps `kv·period_s` far from the discretization's
+/// the HTTP contract's (v1.1) example of a physical range, and keeps `kv·period_s` far from the discretization's
 /// limits at the shortest period a simulation accepts (1e-5 s).
 pub const KV: Bounds = Bounds::open(0.0, 10_000.0, "1/s, position loop gain");
 /// Velocity feed-forward fraction `kff`: [0, 1] (beyond 1 the axis runs ahead of the command).

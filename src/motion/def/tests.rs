@@ -6,7 +6,7 @@ use serde_json::{Value, json};
 use super::*;
 use crate::motion::{Machine, machine_for_simulation, servo_axes};
 
-/// Definitions the service accepts: the CONTRACT body, every extension, the demo's and the
+/// Definitions the service accepts: the HTTP contract's body, every extension, the demo's and the
 /// tests' machines.
 pub(crate) fn accepted() -> Vec<Value> {
     let full = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
