@@ -295,6 +295,12 @@ mod tests {
     use rand::SeedableRng;
     use rand_distr::{Distribution, Normal};
 
+    /// RMS of `est − truth` (mm).
+    fn rms_error(est: &[f64], truth: &[f64]) -> f64 {
+        let ss: f64 = est.iter().zip(truth).map(|(a, b)| (a - b).powi(2)).sum();
+        (ss / truth.len() as f64).sqrt()
+    }
+
     fn noisy_sine(n: usize, f: f64, amp: f64, sigma: f64, seed: u64) -> (Vec<f64>, Vec<f64>) {
         let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
         let nd = Normal::new(0.0, sigma).unwrap();
@@ -317,14 +323,7 @@ mod tests {
         assert!(power > 0.04 * 0.04 * n as f64 / 6.0 * 0.9, "power {power}");
         let fit = Carrier::new(n, f).unwrap().fit(&x).unwrap();
         assert!(fit.edf < 6.0, "edf {}", fit.edf);
-        let rms = (fit
-            .signal
-            .iter()
-            .zip(&truth)
-            .map(|(a, b)| (a - b).powi(2))
-            .sum::<f64>()
-            / n as f64)
-            .sqrt();
+        let rms = rms_error(&fit.signal, &truth);
         assert!(rms < 3.0 * sigma * (6.0 / n as f64).sqrt(), "rms {rms}");
         let smooth = super::super::whittaker::whittaker(&x, 4, None).unwrap();
         assert!(
@@ -354,14 +353,7 @@ mod tests {
             assert!((fh - f).abs() < 0.5 / n as f64, "case {i}: f {fh} vs {f}");
             let fit = Carrier::new(n, fh).unwrap().fit(&x).unwrap();
             assert!(fit.edf < 8.0, "case {i}: edf {}", fit.edf);
-            let rms = (fit
-                .signal
-                .iter()
-                .zip(&truth)
-                .map(|(a, b)| (a - b).powi(2))
-                .sum::<f64>()
-                / n as f64)
-                .sqrt();
+            let rms = rms_error(&fit.signal, &truth);
             assert!(
                 rms < 3.0 * sigma * (8.0 / n as f64).sqrt(),
                 "case {i}: rms {rms}"
