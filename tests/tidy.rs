@@ -6,6 +6,8 @@
 //!   ("## Dependency rules"; the table is parsed from there, so it is kept in one place);
 //! - nothing under `src/cli` or `benches/` reaches into `api`, and `jobs` knows nothing of it;
 //! - no source file is over 600 lines before its tests;
+//! - one module style: a module with submodules is a folder whose `mod.rs` declares them, a
+//!   leaf module is `foo.rs`, and unit tests live in `foo/tests.rs` (no inline `mod tests {`);
 //! - no test or build step reads outside the repository (`../shared`).
 //!
 //! Each failure names the file, the line and the rule, and says how to fix it.
@@ -325,6 +327,46 @@ fn no_source_file_is_over_600_lines_before_its_tests() {
     assert!(
         bad.is_empty(),
         "split these along their own seams (one concept per file, aim 400): {bad:#?}"
+    );
+}
+
+#[test]
+fn one_module_style_with_tests_in_their_own_file() {
+    let mut bad = Vec::new();
+    for f in rust_files(&root().join("src")) {
+        let text = std::fs::read_to_string(&f).unwrap();
+        if text
+            .lines()
+            .any(|l| l.trim_start().starts_with("mod tests {"))
+        {
+            bad.push(format!(
+                "{}: inline `mod tests {{`; move it to tests.rs",
+                rel(&f)
+            ));
+        }
+        let name = f.file_name().unwrap().to_string_lossy().to_string();
+        if name != "mod.rs" && name != "tests.rs" {
+            let folder = f.with_extension("");
+            if let Ok(entries) = std::fs::read_dir(&folder) {
+                let others: Vec<String> = entries
+                    .flatten()
+                    .map(|e| e.file_name().to_string_lossy().to_string())
+                    .filter(|n| n != "tests.rs")
+                    .collect();
+                if !others.is_empty() {
+                    bad.push(format!(
+                        "{}: has submodules {others:?} beside it; make it {}/mod.rs",
+                        rel(&f),
+                        rel(&folder)
+                    ));
+                }
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "one module style (folders with mod.rs, tests in foo/tests.rs):\n{}",
+        bad.join("\n")
     );
 }
 

@@ -18,6 +18,3 @@ pub use step_error::{
     step_errors_split,
 };
 pub use step_features::{FeatureFrame, StepFeatures};
-
-#[cfg(test)]
-mod step_error_tests;

@@ -19,9 +19,7 @@
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-mod bounds;
-
-pub use bounds::{
+pub use super::bounds::{
     Bounds, GEOMETRY_MM, KFF, KP_V, KV, MAX_ACCEL, MAX_JERK, MAX_VEL, PHYSICAL, RAPID_MM_MIN, TC,
     TI_V,
 };

@@ -2,6 +2,7 @@
 //! profile, machine kinematics, the servo cascade per axis ([`servo`]: the cascade of openapi.yaml
 //! schema `Servo`, Zhang & Chen 2025 §3), physical drive parameters, and contour error.
 pub mod axes;
+pub mod bounds;
 pub mod contour;
 pub mod def;
 pub mod error;

@@ -5,7 +5,7 @@
 //! so their latencies overlap (and the compiler may use SIMD). `L = 1` is the single-segment
 //! path, so a batch and a lone segment give bit-identical results.
 
-use super::{Prepared, SegmentRef, StepError, TOL_B, TOL_BRENT, TOL_HALLEY, all_finite};
+use super::solver::{Prepared, SegmentRef, StepError, TOL_B, TOL_BRENT, TOL_HALLEY, all_finite};
 use crate::numeric::brent;
 use crate::numeric::vec3::{norm, normalize, scale, sub};
 

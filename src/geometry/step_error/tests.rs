@@ -2,7 +2,9 @@
 //! (`tests/data/step/testvectors*.csv`: every 97th segment of the three surfaces,
 //! 615 rows; labels from 2001 dense points on the true surface).
 
-use super::*;
+use super::solver::*;
+use crate::geometry::error::Error;
+use crate::geometry::spline::{CubicSpline3, Parameterization};
 
 pub(crate) struct Vector {
     pub surface: u32,

@@ -1,12 +1,12 @@
-//! Exact step error of 3-axis ball-end finishing between two cutter locations (Zhang et al. 2023
-//! eq. 1).
+//! The exact step-error solver: spline through the CC points, safeguarded Halley on each
+//! piece's distance polynomial, batches and their thread split (Zhang et al. 2023 eq. 1).
 
 use serde::{Deserialize, Serialize};
 
-mod lanes;
+use super::lanes;
 
-use super::error::{Error, Result, check_points};
-use super::spline::{CubicSpline3, Parameterization};
+use crate::geometry::error::{Error, Result, check_points};
+use crate::geometry::spline::{CubicSpline3, Parameterization};
 use crate::numeric::vec3::{cross, dot, norm, normalize, scale, sub};
 use crate::numeric::{brent, parallel};
 
@@ -66,16 +66,16 @@ pub struct StepErrorSolver {
 pub type SegmentRef<'a> = ([[f64; 3]; 2], &'a [[f64; 3]]);
 
 /// Segments solved side by side by [`StepErrorSolver::solve_batch`].
-const BATCH_LANES: usize = 4;
+pub(super) const BATCH_LANES: usize = 4;
 
 /// A validated segment: the CL line's point and unit direction, the mean outward normal, the
 /// CC points.
 #[derive(Clone, Copy)]
-struct Prepared<'a> {
-    a: [f64; 3],
-    u: [f64; 3],
-    n_mid: [f64; 3],
-    cc: &'a [[f64; 3]],
+pub(super) struct Prepared<'a> {
+    pub(super) a: [f64; 3],
+    pub(super) u: [f64; 3],
+    pub(super) n_mid: [f64; 3],
+    pub(super) cc: &'a [[f64; 3]],
 }
 
 impl Default for StepErrorSolver {
@@ -87,14 +87,14 @@ impl Default for StepErrorSolver {
 /// Stops of the safeguarded Halley iteration on a piece's local parameter `b` (`t = t_k + b h_k`).
 /// A bisection step or the bracket below 1e-6: |Δb| < 1e-6, a value error (|d2L/db2| Δb^2 / 2,
 /// |d2L/db2| < 1 mm) far below 1e-6 um = 1e-9 mm.
-const TOL_B: f64 = 1e-6;
+pub(super) const TOL_B: f64 = 1e-6;
 /// A Halley step below 1e-4: the iterate it leads to is then good to ~K 1e-12 (cubic
 /// convergence, K = O(1) for these quintics), again far below the value tolerance.
-const TOL_HALLEY: f64 = 1e-4;
+pub(super) const TOL_HALLEY: f64 = 1e-4;
 
 /// Tolerance of the Brent fallback on `b` (pieces where the slope does not bracket a root): the
 /// value error is then about |d2L/db2| * 1e-12 / 2 mm, far below 1e-6 um.
-const TOL_BRENT: f64 = 1e-6;
+pub(super) const TOL_BRENT: f64 = 1e-6;
 
 impl StepErrorSolver {
     /// A solver using `param` to place the CC points on the spline parameter axis
@@ -300,7 +300,7 @@ impl StepErrorSolver {
 }
 
 /// Checks one segment and derives its frame. Errors: see [`StepErrorSolver::solve`].
-fn prepare(r: f64, cl: [[f64; 3]; 2], cc: &[[f64; 3]]) -> Result<Prepared<'_>> {
+pub(super) fn prepare(r: f64, cl: [[f64; 3]; 2], cc: &[[f64; 3]]) -> Result<Prepared<'_>> {
     if !(r.is_finite() && r > 0.0) {
         return Err(Error::InvalidParameter {
             name: "tool_radius (mm)",
@@ -346,7 +346,7 @@ fn prepare(r: f64, cl: [[f64; 3]; 2], cc: &[[f64; 3]]) -> Result<Prepared<'_>> {
 /// into the sign bit exactly when the exponent is all ones (inf, NaN). An OR of those, with no
 /// early exit, vectorises; the slow check then names the bad point.
 #[inline(always)]
-fn all_finite(v: &[f64]) -> bool {
+pub(super) fn all_finite(v: &[f64]) -> bool {
     const EXP: u64 = 0x7FF0_0000_0000_0000;
     const EXP_LSB: u64 = 0x0010_0000_0000_0000;
     v.iter()
@@ -357,7 +357,7 @@ fn all_finite(v: &[f64]) -> bool {
 
 /// (min, max) of a non-empty slice without NaN, in four independent lanes.
 #[inline]
-fn min_max(v: &[f64]) -> (f64, f64) {
+pub(super) fn min_max(v: &[f64]) -> (f64, f64) {
     let (mut lo, mut hi) = ([f64::INFINITY; 4], [f64::NEG_INFINITY; 4]);
     let mut chunks = v.chunks_exact(4);
     for c in &mut chunks {
@@ -377,13 +377,13 @@ fn min_max(v: &[f64]) -> (f64, f64) {
 }
 
 /// The CL line: a point and a unit direction.
-struct Line {
+pub(super) struct Line {
     a: [f64; 3],
     u: [f64; 3],
 }
 
 /// An extremal point of the distance: spline parameter, squared distance (mm^2), point (mm).
-struct Extremum {
+pub(super) struct Extremum {
     t: f64,
     d2: f64,
     point: [f64; 3],
@@ -391,7 +391,7 @@ struct Extremum {
 
 /// One spline piece `Q(b) = Σ c_j b^j` and the part of `Q(b) - a` normal to the CL line,
 /// `P(b) = Σ n_j b^j` (`n_j` = the `c_j` with their component along `u` removed).
-struct Piece {
+pub(super) struct Piece {
     c: [[f64; 3]; 4],
     n: [[f64; 3]; 4],
 }
@@ -459,7 +459,13 @@ impl Piece {
 
 /// The minimum (`minimize`) or maximum of the distance to the CL line on the spline, starting
 /// from knot `k`, the best of the knots (`kd`: the knots' squared distances).
-fn extremum(sp: &CubicSpline3, line: &Line, kd: &[f64], k: usize, minimize: bool) -> Extremum {
+pub(super) fn extremum(
+    sp: &CubicSpline3,
+    line: &Line,
+    kd: &[f64],
+    k: usize,
+    minimize: bool,
+) -> Extremum {
     let s = if minimize { 1.0 } else { -1.0 };
     let knots = sp.knots();
     let m = knots.len();
@@ -509,7 +515,7 @@ fn extremum(sp: &CubicSpline3, line: &Line, kd: &[f64], k: usize, minimize: bool
 /// `b <- b - 2 f f' / (2 f'^2 - f f'')` from the secant root, kept inside the shrinking
 /// bracket (a bisection step when it leaves it), without data-dependent branches on the
 /// bracket update.
-fn halley(piece: &Piece, s: f64, f0: f64, f1: f64) -> f64 {
+pub(super) fn halley(piece: &Piece, s: f64, f0: f64, f1: f64) -> f64 {
     let (mut lo, mut hi) = (0.0f64, 1.0f64);
     let mut x = if f1 > f0 { f0 / (f0 - f1) } else { 0.5 };
     for _ in 0..64 {

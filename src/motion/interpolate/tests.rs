@@ -1,0 +1,169 @@
+//! Unit tests of `crate::motion::interpolate`.
+
+use super::*;
+use crate::motion::gcode::parse;
+use serde_json::json;
+
+fn xyz(limits: serde_json::Value) -> Machine {
+    let mut ax = json!({"kv": 30});
+    for (k, v) in limits.as_object().unwrap() {
+        ax[k] = v.clone();
+    }
+    Machine::from_json(&json!({"kinematics": "xyz", "axes": {"X": ax, "Y": ax, "Z": ax}})).unwrap()
+}
+
+fn run(m: &Machine, text: &str) -> Trajectory {
+    interpolate(&parse(text).unwrap(), m, 1e-3, 10_000_000).unwrap()
+}
+
+/// Max |first, second, third difference| per axis (velocity, acceleration, jerk).
+fn derivatives(t: &Trajectory, skip: &dyn Fn(usize) -> bool) -> (f64, f64, f64) {
+    let h = t.period_s;
+    let (mut v, mut a, mut j) = (0.0f64, 0.0f64, 0.0f64);
+    for col in &t.axes {
+        for k in 3..col.len() {
+            if skip(k) {
+                continue;
+            }
+            v = v.max(((col[k] - col[k - 1]) / h).abs());
+            a = a.max(((col[k] - 2.0 * col[k - 1] + col[k - 2]) / (h * h)).abs());
+            j = j.max(
+                ((col[k] - 3.0 * col[k - 1] + 3.0 * col[k - 2] - col[k - 3]) / (h * h * h)).abs(),
+            );
+        }
+    }
+    (v, a, j)
+}
+
+#[test]
+fn line_respects_axis_limits_and_reaches_the_feed() {
+    let m = xyz(json!({"max_vel": 200.0, "max_accel": 2000.0, "max_jerk": 40000.0}));
+    // Programmed 300 mm/s along X: capped to 200 mm/s by max_vel.
+    let t = run(&m, "G1 X400 F18000");
+    let (v, a, j) = derivatives(&t, &|_| false);
+    assert!((v - 200.0).abs() < 1e-6, "v {v}");
+    assert!(a <= 2000.0 * 1.001, "a {a}");
+    assert!(j <= 40000.0 * 1.05, "j {j}");
+    assert_eq!(*t.axes[0].last().unwrap(), 400.0);
+    // Duration: 400/200 s cruise-equivalent plus one ramp (accel) time: dv/a + a/j.
+    let expect = 400.0 / 200.0 + 200.0 / 2000.0 + 2000.0 / 40000.0;
+    let got = t.t.last().unwrap();
+    assert!((got - expect).abs() < 2e-3, "{got} vs {expect}");
+}
+
+#[test]
+fn look_ahead_keeps_speed_through_tangent_junctions_and_stops_at_corners() {
+    let m = xyz(json!({}));
+    // 36 arcs of 10° forming a circle: tangent junctions, speed must not dip.
+    let mut prog = String::from("G0 X10 Y0\nG1 F3000\n");
+    for k in 1..=36 {
+        let th = (k as f64 * 10.0f64).to_radians();
+        let (x0, y0) = (
+            10.0 * ((k - 1) as f64 * 10.0f64).to_radians().cos(),
+            10.0 * ((k - 1) as f64 * 10.0f64).to_radians().sin(),
+        );
+        prog += &format!(
+            "G3 X{:.9} Y{:.9} I{:.9} J{:.9}\n",
+            10.0 * th.cos(),
+            10.0 * th.sin(),
+            -x0,
+            -y0
+        );
+    }
+    let t = run(&m, &prog);
+    let speeds: Vec<f64> = (1..t.t.len())
+        .filter(|&k| t.line[k] >= 12 && t.line[k] <= 30)
+        .map(|k| (t.axes[0][k] - t.axes[0][k - 1]).hypot(t.axes[1][k] - t.axes[1][k - 1]) / 1e-3)
+        .collect();
+    let min = speeds.iter().cloned().fold(f64::MAX, f64::min);
+    assert!((min - 50.0).abs() < 1e-3, "speed dipped to {min}");
+    // A 90° corner between two lines: the speed at the corner is bounded by
+    // max_accel·period/|Δ(dq/ds)| per axis = 5000·1e-3/1 = 5 mm/s.
+    let t = run(&m, "G1 X50 F6000\nG1 Y50");
+    let corner = t.line.iter().position(|&l| l == 2).unwrap();
+    let v = (t.axes[0][corner] - t.axes[0][corner - 1])
+        .hypot(t.axes[1][corner] - t.axes[1][corner - 1])
+        / 1e-3;
+    assert!(v <= 5.0 + 1e-9, "corner speed {v}");
+    let (_, a, _) = derivatives(&t, &|_| false);
+    assert!(a <= 5000.0 * 2.01, "a {a}");
+}
+
+/// Zhang & Chen 2025 eqs. 4–7: with RTCP the programmed F is the tool-tip speed; without RTCP
+/// it is the speed in the extended displacement √(ΔX²+…+ΔA²+ΔC²) (rotary terms in radians).
+#[test]
+fn feed_distribution_follows_seed_equations() {
+    let ax = json!({"kv": 30, "max_vel": 1e6, "max_accel": 1e7, "max_jerk": 1e10});
+    let m = Machine::from_json(&json!({"kinematics": "xyzac_table",
+            "geometry": {"a_axis_origin": [0, 0, -50], "tool_length": 100},
+            "axes": {"X": ax, "Y": ax, "Z": ax, "A": ax, "C": ax}}))
+    .unwrap();
+    // RTCP on: tip speed = F/60 = 20 mm/s in mid-block.
+    let t = run(&m, "G43.4\nG1 X0 Y0 Z0 F1200\nG1 X100 Y0 Z0 A30 C90\n");
+    let k = t.line.iter().position(|&l| l == 3).unwrap() + (100.0 / 20.0 / 2.0 / 1e-3) as usize;
+    let tip = |k: usize| {
+        m.kinematics
+            .forward(&std::array::from_fn(|i| t.axes[i][k]))
+            .tip
+    };
+    let v = crate::motion::program::dist3(&tip(k), &tip(k - 1)) / 1e-3;
+    assert!((v - 20.0).abs() < 1e-3, "tip speed {v}");
+    // RTCP off: 100 mm in X with 90° of C: ΔL = √(100² + (π/2)²); block time ΔL/F.
+    let t = run(&m, "G1 X100 C90 F1200\n");
+    let dl = (100.0f64.powi(2) + std::f64::consts::FRAC_PI_2.powi(2)).sqrt();
+    let k = t.t.len() / 2;
+    let vx = (t.axes[0][k] - t.axes[0][k - 1]) / 1e-3;
+    let vc = (t.axes[4][k] - t.axes[4][k - 1]) / 1e-3;
+    assert!((vx - 100.0 / dl * 20.0).abs() < 1e-6, "vx {vx}");
+    assert!((vc - 90.0 / dl * 20.0).abs() < 1e-6, "vc {vc}");
+    // G93: the block takes 1/F min: F2 → 30 s (plus the tiny ramps here).
+    let t = run(&m, "G93 G1 X10 F2\n");
+    assert!(
+        (t.t.last().unwrap() - 30.0).abs() < 0.01,
+        "{}",
+        t.t.last().unwrap()
+    );
+}
+
+#[test]
+fn bad_inputs_are_typed_errors() {
+    let m = xyz(json!({}));
+    let e = interpolate(&parse("G1 X1 F100\nG1 A10").unwrap(), &m, 1e-3, 1000).unwrap_err();
+    assert!(matches!(e, Error::Gcode { line: 2, .. }), "{e:?}");
+    let e = interpolate(&parse("G1 X1000 F10").unwrap(), &m, 1e-3, 1000).unwrap_err();
+    assert!(
+        matches!(e, Error::TooManyPeriods { limit: 1000, .. }),
+        "{e:?}"
+    );
+    let e = interpolate(&parse("G1 X1 F10").unwrap(), &m, 0.0, 1000).unwrap_err();
+    assert!(matches!(e, Error::InvalidParameter { .. }), "{e:?}");
+    let e = interpolate(&parse("G1 F10\n(nothing)").unwrap(), &m, 1e-3, 1000).unwrap_err();
+    assert_eq!(e, Error::EmptyProgram);
+}
+
+#[test]
+fn dwell_holds_position() {
+    let m = xyz(json!({}));
+    let t = run(&m, "G1 X10 F600\nG4 X0.5\nG1 X20");
+    let dwell: Vec<usize> = (0..t.t.len()).filter(|&k| t.line[k] == 2).collect();
+    assert!(dwell.len() >= 499 && dwell.len() <= 501, "{}", dwell.len());
+    assert!(dwell.iter().all(|&k| t.axes[0][k] == 10.0));
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(300))]
+    /// Whatever parses also interpolates without panicking (error or trajectory).
+    #[test]
+    fn random_programs_never_panic(
+        s in "(G[0-3] |G9[01] |G1[789] |G43.4 |G49 )?([XYZAC][-]?[0-9]{1,3}(\\.[0-9]{1,3})? ){1,4}([IJKR][-]?[0-9]{1,2} ){0,2}(F[1-9][0-9]{0,4})?\n{1,8}"
+    ) {
+        let ax = json!({"kv": 30});
+        let m = Machine::from_json(&json!({"kinematics": "xyzac_table",
+            "axes": {"X": ax, "Y": ax, "Z": ax, "A": ax, "C": ax}})).unwrap();
+        if let Ok(p) = parse(&format!("G1 F1000\n{s}"))
+            && let Ok(t) = interpolate(&p, &m, 1e-3, 200_000)
+        {
+            proptest::prop_assert!(t.axes.iter().flatten().all(|v| v.is_finite()));
+        }
+    }
+}
