@@ -46,14 +46,27 @@ impl Bounds {
             return Ok(value);
         }
         let range = if self.lo_open {
-            format!("must be > {} and at most {}", self.lo, self.hi)
+            format!(
+                "must be > {} and at most {}",
+                short(self.lo),
+                short(self.hi)
+            )
         } else {
-            format!("must be in {}..{}", self.lo, self.hi)
+            format!("must be in {}..{}", short(self.lo), short(self.hi))
         };
         Err(Error::BadDefinition {
             field: field.to_string(),
-            message: format!("{range} ({}), got {value}", self.what),
+            message: format!("{range} ({}), got {}", self.what, short(value)),
         })
+    }
+}
+
+/// A number as a person reads it: `1e300`, not three hundred digits.
+fn short(v: f64) -> String {
+    if v != 0.0 && !(1e-4..1e7).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
     }
 }
 
