@@ -1,5 +1,5 @@
 //! Canned drilling cycles G73/G81/G82/G83/G85 expanded into the rapid and feed moves they
-//! make (Fanuc semantics, Smid 2008 ch. 25: "Fixed cycles"): rapid to the hole's XY, rapid to
+//! make (Fanuc semantics; Smid 2008 ch. 25, fixed cycles): rapid to the hole's XY, rapid to
 //! the R plane, feed to Z, dwell P (G82), retract (feed for G85, rapid otherwise), then rapid
 //! to the initial Z (G98) or stay at R (G99).
 //!

@@ -372,12 +372,26 @@ impl Reader<'_> {
         has_arc_words: bool,
     ) -> Result<(), Error> {
         let w = &l.words;
-        let mode = self.m.motion.ok_or_else(|| {
-            Error::gcode(
-                line,
-                "axis words without a motion mode: add G0, G1, G2 or G3",
-            )
-        })?;
+        let mode = match self.m.motion {
+            Some(mode) => mode,
+            None if self.notes.legacy() => {
+                return Err(Error::gcode(
+                    line,
+                    "axis words without a motion mode: add G0, G1, G2 or G3",
+                ));
+            }
+            None => {
+                // Fanuc and Haas power on in G0 (Smid 2008 ch. 4): a post relies on it.
+                self.notes.note(
+                    line,
+                    "no motion mode",
+                    "axis words before any G0/G1/G2/G3 are read as G0 (the power-on default)",
+                    Refused,
+                )?;
+                self.m.motion = Some(MotionMode::Rapid);
+                MotionMode::Rapid
+            }
+        };
         if w.get(b'A').is_some() && self.prog.first_a_line.is_none() {
             self.prog.first_a_line = Some(line);
         }

@@ -85,6 +85,11 @@ impl Notes {
         }
     }
 
+    /// True when reading as [`super::parse`] did.
+    pub(crate) fn legacy(&self) -> bool {
+        self.mode == Mode::Legacy
+    }
+
     /// Names `word` (first time only) or refuses it, by mode.
     pub(crate) fn note(
         &mut self,

@@ -264,6 +264,8 @@ impl Reader<'_> {
                         )?;
                     }
                     c.cycle = Some(g / 10);
+                    // Cycles share G0..G3's modal group: after G80 nothing is in force.
+                    self.m.motion = None;
                 }
                 900 => self.m.incremental = false,
                 910 => self.m.incremental = true,
