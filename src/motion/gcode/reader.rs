@@ -227,6 +227,12 @@ impl Reader<'_> {
                     self.notes.modelled(line, name)?;
                     c.tool_length = true;
                 }
+                440 => self.notes.note(
+                    line,
+                    name,
+                    "negative tool length compensation is not modelled: the programmed tool-tip path is used",
+                    Refused,
+                )?,
                 434 => self.m.rtcp = true,
                 490 => {
                     self.m.rtcp = false;
