@@ -116,7 +116,11 @@ async fn contour_error(
     let body = state
         .jobs
         .run(move || {
-            let (program, warnings) = parse_with(&req.gcode, &options)?;
+            let (mut program, mut warnings) = parse_with(&req.gcode, &options)?;
+            if !options.strict {
+                let has = |name: &str| m.axes.iter().any(|a| a.name == name);
+                warnings.extend(program.forget_still_rotary_axes(has("A"), has("C")));
+            }
             predict_program(&m, &program, period_s, MAX_SYNC_PERIODS)
                 .map(|p| encode_answer_with_warnings(&m, &p, &warnings))
         })

@@ -98,6 +98,20 @@ async fn gcode_errors_name_line_and_code(app: TestApp) {
     assert_problem(r, 422, &["line 2", "circle"]).await;
     let r = contour(&app, "m", &json!({"gcode": "G1 X1 F100\nG1 A10\n"})).await;
     assert_problem(r, 422, &["line 2", "A"]).await;
+    // An A word that never moves the axis is a warning on an xyz machine (422 when strict).
+    let still = json!({"gcode": "G1 X1 A0 F100\nG1 X2\n"});
+    let r = contour(&app, "m", &still).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    assert!(
+        b["warnings"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("line 1: A0: "),
+        "{b}"
+    );
+    let still = json!({"gcode": "G1 X1 A0 F100\nG1 X2\n", "strict": true});
+    assert_problem(contour(&app, "m", &still).await, 422, &["line 1", "A"]).await;
     let r = contour(&app, "m", &json!({"gcode": "G1 X100000 F10\n"})).await;
     assert_problem(r, 422, &["1000000", "period_s"]).await;
 }
