@@ -2,10 +2,12 @@
 //! Sinumerik TRAORI/TRAFOOF.
 //!
 //! Files: `lexer` (comments, words), `reader` (modal state, what a line asks for), `moves`
-//! (blocks, offsets, G28), `cycles` (canned drilling cycles), `options` (options and
+//! (blocks, dwell, cycles in force, M codes), `frame` (work offsets, tool lengths,
+//! G28/G30/G53), `cycles` (canned drilling cycles expanded), `options` (options and
 //! warnings) and the tests.
 
 mod cycles;
+mod frame;
 mod lexer;
 mod moves;
 mod options;

@@ -1,5 +1,5 @@
-//! The reader's moves: plain motion blocks (G0..G3), dwell, canned cycles, G28/G30/G53, and
-//! the modal words that shift the machine frame (G54..G59 work offsets, G43 H tool length).
+//! The reader's moves: plain motion blocks (G0..G3), dwell, canned cycles, and the M codes
+//! and unmodelled axes of a line (the machine frame is `super::frame`).
 //!
 //! Split from `super::reader` (which reads a line's codes and decides what it asks for) so
 //! that each file keeps to one concept.
@@ -9,7 +9,7 @@ use super::lexer::{Lexed, word_name};
 use super::options::Legacy::{Accepted, Refused};
 use super::reader::{MotionMode, Reader};
 use crate::motion::error::Error;
-use crate::motion::program::{ArcWords, Block, Feed, Motion, Pose, arc_geometry};
+use crate::motion::program::{ArcWords, Block, Feed, Motion, arc_geometry};
 
 const XYZ: [u8; 3] = [b'X', b'Y', b'Z'];
 
@@ -72,66 +72,6 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// G43 H: the caller's tool length for H is added to Z, else the tool-tip path is kept.
-    pub(super) fn tool_length(&mut self, line: usize, h: Option<f64>) -> Result<(), Error> {
-        self.m.tool_mm = 0.0;
-        let Some(h) = h else {
-            return self.notes.note(
-                line,
-                "G43",
-                "no H word: the programmed tool-tip path is used",
-                Refused,
-            );
-        };
-        let word = format!("G43 {}", word_name('H', h));
-        let number = (h >= 0.0 && h.fract() == 0.0).then_some(h as u32);
-        match number.and_then(|n| self.opts.tool_lengths_mm.get(&n)) {
-            Some(&len) => {
-                self.m.tool_mm = len;
-                self.notes
-                    .applied(line, word, format!("tool length {len} mm added to Z"))
-            }
-            None => self.notes.note(
-                line,
-                word,
-                format!(
-                    "no tool length given for H{h} in tool_lengths: the programmed tool-tip \
-                     path is used"
-                ),
-                Refused,
-            ),
-        }
-    }
-
-    /// G54..G59 (`g` = code × 10): the caller's offset, else zero.
-    pub(super) fn work_offset(&mut self, line: usize, g: u32) -> Result<(), Error> {
-        let idx = (g / 10 - 54) as usize;
-        let name = format!("G{}", g / 10);
-        match self.opts.work_offsets_mm[idx] {
-            Some(off) => {
-                self.m.work_mm = off;
-                self.notes.applied(
-                    line,
-                    name,
-                    format!(
-                        "work offset [{}, {}, {}] mm applied",
-                        off[0], off[1], off[2]
-                    ),
-                )
-            }
-            None => {
-                self.m.work_mm = [0.0; 3];
-                let legacy = if idx == 0 { Accepted } else { Refused };
-                self.notes.note(
-                    line,
-                    name,
-                    "no offset given in work_offsets: taken as zero (program zero = machine zero)",
-                    legacy,
-                )
-            }
-        }
-    }
-
     /// G4: X seconds or P milliseconds.
     pub(super) fn dwell(&mut self, line: usize, l: &Lexed, with_motion: bool) -> Result<(), Error> {
         if with_motion {
@@ -191,7 +131,7 @@ impl Reader<'_> {
     }
 
     /// Target of axis `k` (0 X, 1 Y, 2 Z) for word value `v` in the current G90/G91 mode.
-    fn target(&self, k: usize, v: f64) -> f64 {
+    pub(super) fn target(&self, k: usize, v: f64) -> f64 {
         if self.m.incremental {
             self.m.pose.xyz[k] + v * self.scale()
         } else {
@@ -199,84 +139,8 @@ impl Reader<'_> {
         }
     }
 
-    fn unknown_since(&self) -> Option<usize> {
+    pub(super) fn unknown_since(&self) -> Option<usize> {
         self.m.unknown.iter().flatten().copied().min()
-    }
-
-    fn push_rapid(&mut self, line: usize, end: Pose) {
-        if end != self.m.pose {
-            self.prog.blocks.push(Block {
-                line,
-                motion: Motion::Linear,
-                start: self.m.pose,
-                end,
-                feed: Feed::Rapid,
-                rtcp: self.m.rtcp,
-            });
-        }
-        self.m.pose = end;
-    }
-
-    /// G28/G30 (through the intermediate point to home) and G53 (machine coordinates).
-    pub(super) fn home(&mut self, line: usize, g: u32, l: &Lexed) -> Result<(), Error> {
-        let named: Vec<usize> = (0..3).filter(|&k| l.words.get(XYZ[k]).is_some()).collect();
-        if g != 530 {
-            let mut mid = self.m.pose;
-            for &k in &named {
-                mid.xyz[k] = self.target(k, l.words.get(XYZ[k]).unwrap_or(0.0));
-            }
-            if self.unknown_since().is_none() {
-                self.push_rapid(line, mid);
-            } else {
-                self.m.pose = mid;
-            }
-        }
-        let name = if g == 530 {
-            "G53"
-        } else if g == 280 {
-            "G28"
-        } else {
-            "G30"
-        };
-        match self.opts.home_mm {
-            Some(home) => {
-                let mut end = self.m.pose;
-                for &k in &named {
-                    end.xyz[k] = if g == 530 {
-                        l.words.get(XYZ[k]).unwrap_or(0.0) * self.scale()
-                    } else {
-                        home[k]
-                    };
-                }
-                let known = self.unknown_since().is_none();
-                for &k in &named {
-                    self.m.unknown[k] = None;
-                }
-                if known {
-                    self.push_rapid(line, end);
-                } else {
-                    self.m.pose = end;
-                }
-            }
-            None => {
-                let axes: String = named.iter().map(|&k| XYZ[k] as char).collect();
-                for &k in &named {
-                    self.m.unknown[k] = Some(line);
-                }
-                if !named.is_empty() {
-                    self.notes.note(
-                        line,
-                        name,
-                        format!(
-                            "no home given: axes {axes} are at unknown machine positions until \
-                             programmed absolutely again"
-                        ),
-                        Refused,
-                    )?;
-                }
-            }
-        }
-        Ok(())
     }
 
     /// Starts (`code` Some) or updates the canned cycle from the line's R, Z, P words.

@@ -440,3 +440,34 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn g53_and_g30_with_a_home_move_to_machine_positions() {
+    let mut opts = ReadOptions {
+        home_mm: Some([-5.0, -5.0, 80.0]),
+        ..ReadOptions::default()
+    };
+    opts.work_offsets_mm[0] = Some([10.0, 0.0, 0.0]);
+    let (p, w) = parse_with("G54 G0 X1 Z5\nG53 G0 Z60\nG30 X2\nG0 X0", &opts).unwrap();
+    let ends: Vec<[f64; 3]> = p.blocks.iter().map(|b| b.end.xyz).collect();
+    // G53: machine Z60 (no offset); G30 X2: through program X2 (machine 12) to home X.
+    assert_eq!(
+        ends,
+        vec![
+            [11.0, 0.0, 5.0],
+            [11.0, 0.0, 60.0],
+            [12.0, 0.0, 60.0],
+            [-5.0, 0.0, 60.0],
+            [10.0, 0.0, 60.0]
+        ]
+    );
+    assert_eq!(w.len(), 1, "{w:?}");
+    // G53 without a home: the axes it names are unknown until programmed absolutely.
+    let (p, w) = lenient("G0 X1\nG53 Z0\nG0 X2\nG0 Z3 X4");
+    assert_eq!(p.blocks.len(), 2);
+    assert!(w.iter().any(|w| w.word == "G53"));
+    assert!(
+        w.iter()
+            .any(|w| w.line == 3 && w.message.contains("unknown"))
+    );
+}
