@@ -306,12 +306,12 @@ impl Reader<'_> {
         if c.tool_length {
             self.tool_length(line, w.get(b'H'))?;
         } else if let Some(h) = w.get(b'H') {
-            self.notes.note(
-                line,
-                word_name('H', h),
-                "tool length offset number without G43: not used",
-                Accepted,
-            )?;
+            let what = if l.gcodes.contains(&434) {
+                "tool length number of G43.4: RTCP uses the machine's geometry.tool_length"
+            } else {
+                "tool length offset number without G43: not used"
+            };
+            self.notes.note(line, word_name('H', h), what, Accepted)?;
         }
         if let Some(q) = w.get(b'Q') {
             if c.cycle.is_none() && self.m.cycle.is_none() {
