@@ -8,6 +8,7 @@ use axum::http::header;
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
 use serde::Deserialize;
+use std::collections::BTreeMap;
 
 use super::AppState;
 use super::error::{ApiError, ApiResult};
@@ -15,9 +16,10 @@ use super::extract::ApiJson;
 use super::lookup::require_machine_def;
 use crate::api::id::PathIds;
 use crate::motion::{
-    DEFAULT_PERIOD_S, check_period, machine_for_simulation, predict_contour_error,
+    DEFAULT_PERIOD_S, ReadOptions, check_period, machine_for_simulation, parse_with,
+    predict_program,
 };
-use crate::wire::contour::encode_answer;
+use crate::wire::contour::encode_answer_with_warnings;
 
 /// Routes of this resource.
 pub fn routes() -> Router<AppState> {
@@ -36,6 +38,64 @@ pub struct ContourRequest {
     /// Interpolation period, s (default 0.001).
     #[serde(default)]
     pub period_s: Option<f64>,
+    /// Refuse (422) every word the reader would pass with a warning (default false).
+    #[serde(default)]
+    pub strict: bool,
+    /// Work offsets by code ("G54".."G59"): [x, y, z] mm in machine coordinates.
+    #[serde(default)]
+    pub work_offsets: BTreeMap<String, [f64; 3]>,
+    /// Tool lengths by H number ("1", "2", ...), mm, applied by G43 H.
+    #[serde(default)]
+    pub tool_lengths: BTreeMap<String, f64>,
+    /// Machine home for G28/G30/G53: [x, y, z] mm in machine coordinates.
+    #[serde(default)]
+    pub home: Option<[f64; 3]>,
+}
+
+impl ContourRequest {
+    /// The reader's options, checked once at the door: offset keys G54..G59, tool keys
+    /// non-negative integers, every number finite (400 naming the field otherwise).
+    pub fn read_options(&self) -> Result<ReadOptions, ApiError> {
+        let finite = |field: String, v: &[f64]| {
+            if v.iter().all(|x| x.is_finite()) {
+                Ok(())
+            } else {
+                Err(ApiError::bad_request(format!(
+                    "{field}: values must be finite mm"
+                )))
+            }
+        };
+        let mut opts = ReadOptions {
+            strict: self.strict,
+            home_mm: self.home,
+            ..ReadOptions::default()
+        };
+        if let Some(h) = &self.home {
+            finite("home".into(), h)?;
+        }
+        for (key, off) in &self.work_offsets {
+            let idx = ["G54", "G55", "G56", "G57", "G58", "G59"]
+                .iter()
+                .position(|k| k == key)
+                .ok_or_else(|| {
+                    ApiError::bad_request(format!(
+                        "work_offsets.{key}: keys are G54, G55, G56, G57, G58 or G59"
+                    ))
+                })?;
+            finite(format!("work_offsets.{key}"), off)?;
+            opts.work_offsets_mm[idx] = Some(*off);
+        }
+        for (key, len) in &self.tool_lengths {
+            let number: u32 = key.parse().map_err(|_| {
+                ApiError::bad_request(format!(
+                    "tool_lengths.{key}: keys are H numbers such as \"1\""
+                ))
+            })?;
+            finite(format!("tool_lengths.{key}"), &[*len])?;
+            opts.tool_lengths_mm.insert(number, *len);
+        }
+        Ok(opts)
+    }
 }
 
 async fn contour_error(
@@ -51,12 +111,18 @@ async fn contour_error(
             "gcode is empty: send the program text, e.g. \"G1 X10 F600\"",
         ));
     }
+    let options = req.read_options()?;
     let m = machine_for_simulation(&machine, &def)?;
     let body = state
         .jobs
         .run(move || {
-            predict_contour_error(&m, &req.gcode, period_s, MAX_SYNC_PERIODS)
-                .map(|p| encode_answer(&m, &p))
+            let (mut program, mut warnings) = parse_with(&req.gcode, &options)?;
+            if !options.strict {
+                let has = |name: &str| m.axes.iter().any(|a| a.name == name);
+                warnings.extend(program.forget_still_rotary_axes(has("A"), has("C")));
+            }
+            predict_program(&m, &program, period_s, MAX_SYNC_PERIODS)
+                .map(|p| encode_answer_with_warnings(&m, &p, &warnings))
         })
         .await??
         .map_err(ApiError::internal)?;

@@ -21,10 +21,10 @@ pub use axes::{ServoAxes, check_period, machine_for_simulation, servo_axes, stor
 pub use contour::{ContourReport, contour_error};
 pub use def::{AxesDef, AxisDef, KinematicsKind, MachineDef};
 pub use error::Error;
-pub use gcode::{Program, parse};
+pub use gcode::{Program, ReadOptions, Warning, parse, parse_with};
 pub use interpolate::{Corner, DEFAULT_PERIOD_S, Trajectory, interpolate};
 pub use kinematics::{Kinematics, TableGeometry, ToolPose};
 pub use machine::{AxisLimits, Machine, MachineAxis};
 pub use physical::{PhysicalAxis, StructuralMode};
-pub use predict::{ContourPrediction, predict_contour_error, simulate_machine};
+pub use predict::{ContourPrediction, predict_contour_error, predict_program, simulate_machine};
 pub use servo::{DiscreteServo, ServoAxis, simulate_axis};

@@ -49,7 +49,19 @@ pub fn predict_contour_error(
     max_periods: usize,
 ) -> Result<ContourPrediction, Error> {
     let program = gcode::parse(gcode_text)?;
-    let commanded = interpolate(&program, machine, period_s, max_periods)?;
+    predict_program(machine, &program, period_s, max_periods)
+}
+
+/// Predicts the contour error of a program already read (e.g. by [`gcode::parse_with`], whose
+/// warnings the caller keeps) on `machine` with interpolation period `period_s` (s; 1e-5..0.1),
+/// refusing programs longer than `max_periods` periods.
+pub fn predict_program(
+    machine: &Machine,
+    program: &gcode::Program,
+    period_s: f64,
+    max_periods: usize,
+) -> Result<ContourPrediction, Error> {
+    let commanded = interpolate(program, machine, period_s, max_periods)?;
     let actual = simulate_machine(machine, &commanded)?;
     let report = contour_error(
         &machine.kinematics,

@@ -2,6 +2,7 @@
 //! (pose along a block, path length, arc centre and sweep).
 
 use super::error::Error;
+use super::gcode::Warning;
 
 /// Working plane of circular interpolation (G17, G18, G19).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -97,6 +98,42 @@ pub struct Program {
     pub first_a_line: Option<usize>,
     /// First line that programs the C axis, if any.
     pub first_c_line: Option<usize>,
+}
+
+impl Program {
+    /// Lenient reading for a machine without A (`has_a` false) or C: a rotary word that never
+    /// changes the axis from its start value 0 is forgotten and named in a warning (CONTRACT
+    /// v1.1 "Reading real programs"); one that moves is left for the interpolator to refuse.
+    pub fn forget_still_rotary_axes(&mut self, has_a: bool, has_c: bool) -> Vec<Warning> {
+        let mut out = Vec::new();
+        let still_a = self
+            .blocks
+            .iter()
+            .all(|b| b.start.a == 0.0 && b.end.a == 0.0);
+        let still_c = self
+            .blocks
+            .iter()
+            .all(|b| b.start.c == 0.0 && b.end.c == 0.0);
+        for (first, has, still, axis) in [
+            (&mut self.first_a_line, has_a, still_a, 'A'),
+            (&mut self.first_c_line, has_c, still_c, 'C'),
+        ] {
+            if let Some(line) = *first
+                && !has
+                && still
+            {
+                *first = None;
+                out.push(Warning {
+                    line,
+                    word: format!("{axis}0"),
+                    message: format!(
+                        "the machine has no {axis} axis; the program never moves it, so it is ignored"
+                    ),
+                });
+            }
+        }
+        out
+    }
 }
 
 /// The I, J, K (centre offsets, program units) and R words of a G2/G3 line.

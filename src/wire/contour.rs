@@ -5,7 +5,7 @@
 use serde::Serialize;
 use serde::ser::{SerializeSeq, Serializer};
 
-use crate::motion::{ContourPrediction, Machine};
+use crate::motion::{ContourPrediction, Machine, Warning};
 
 /// Columns (one `Vec` per axis) written as rows `[[x, y, z, ...], ...]` without copying.
 struct Rows<'a>(&'a [Vec<f64>]);
@@ -51,6 +51,7 @@ struct Tracking<'a> {
 /// sample, worst sample, per-axis tracking error, 5-axis orientation error).
 #[derive(Serialize)]
 struct Answer<'a> {
+    warnings: Vec<String>,
     t: &'a [f64],
     commanded: Rows<'a>,
     actual: Rows<'a>,
@@ -69,14 +70,25 @@ struct Answer<'a> {
     orientation_max_deg: Option<f64>,
 }
 
-/// Encodes a prediction of machine `m` as the route's JSON answer.
+/// Encodes a prediction of machine `m` as the route's JSON answer (no reader warnings).
 pub fn encode_answer(m: &Machine, p: &ContourPrediction) -> serde_json::Result<Vec<u8>> {
+    encode_answer_with_warnings(m, p, &[])
+}
+
+/// Encodes a prediction of machine `m` as the route's JSON answer, with the G-code reader's
+/// `warnings` (each as "line N: word: message").
+pub fn encode_answer_with_warnings(
+    m: &Machine,
+    p: &ContourPrediction,
+    warnings: &[Warning],
+) -> serde_json::Result<Vec<u8>> {
     let ce = &p.report.contour_error;
     let index = ce
         .iter()
         .enumerate()
         .fold(0, |b, (i, v)| if *v > ce[b] { i } else { b });
     let answer = Answer {
+        warnings: warnings.iter().map(ToString::to_string).collect(),
         t: &p.commanded.t,
         commanded: Rows(&p.commanded.axes),
         actual: Rows(&p.actual),

@@ -79,8 +79,16 @@ on_both_backends!(five_axis_rtcp_answer);
 
 async fn gcode_errors_name_line_and_code(app: TestApp) {
     put_machine(&app, "m", &xyz_kv(30.0, 0.0)).await;
-    let r = contour(&app, "m", &json!({"gcode": "G1 X1 F100\nG41 D1\n"})).await;
+    // G41 is read with a warning by default (issue 14); strict refuses it.
+    let r = contour(
+        &app,
+        "m",
+        &json!({"gcode": "G1 X1 F100\nG41 X2\n", "strict": true}),
+    )
+    .await;
     assert_problem(r, 422, &["line 2", "G41"]).await;
+    let r = contour(&app, "m", &json!({"gcode": "G1 X1 F100\nG12.1\n"})).await;
+    assert_problem(r, 422, &["line 2", "G12.1"]).await;
     let r = contour(
         &app,
         "m",
@@ -90,10 +98,172 @@ async fn gcode_errors_name_line_and_code(app: TestApp) {
     assert_problem(r, 422, &["line 2", "circle"]).await;
     let r = contour(&app, "m", &json!({"gcode": "G1 X1 F100\nG1 A10\n"})).await;
     assert_problem(r, 422, &["line 2", "A"]).await;
+    // An A word that never moves the axis is a warning on an xyz machine (422 when strict).
+    let still = json!({"gcode": "G1 X1 A0 F100\nG1 X2\n"});
+    let r = contour(&app, "m", &still).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    assert!(
+        b["warnings"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("line 1: A0: "),
+        "{b}"
+    );
+    let still = json!({"gcode": "G1 X1 A0 F100\nG1 X2\n", "strict": true});
+    assert_problem(contour(&app, "m", &still).await, 422, &["line 1", "A"]).await;
     let r = contour(&app, "m", &json!({"gcode": "G1 X100000 F10\n"})).await;
     assert_problem(r, 422, &["1000000", "period_s"]).await;
 }
 on_both_backends!(gcode_errors_name_line_and_code);
+
+/// A finishing program as a Fanuc-style post writes it (issue 14).
+const POST: &str = "%
+O1234 (FINISH POCKET)
+(T1 D6 FLAT ENDMILL)
+N10 G21 G90 G17 G40 G49 G80
+N20 T1 M6
+N30 G54
+N40 G43 H1 Z50.
+N50 S12000 M3
+N60 M8
+N70 G0 X10. Y0.
+N80 G1 Z-1. F300.
+N90 G3 X0. Y10. I-10. J0.
+N100 G2 X-10. Y0. R10.
+N110 G1 X-10. Y-5.
+N120 G0 Z5.
+N130 G98 G83 X20. Y20. Z-10. R2. Q1. F200.
+N140 X30.
+N150 G80
+N160 G28 G91 Z0.
+N170 M30
+%
+";
+
+async fn post_processor_program_lenient_and_strict(app: TestApp) {
+    put_machine(&app, "m", &xyz_kv(30.0, 0.0)).await;
+    let r = contour(&app, "m", &json!({"gcode": POST})).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    let warnings: Vec<String> = serde_json::from_value(b["warnings"].clone()).unwrap();
+    for (word, line) in [
+        ("%", 1),
+        ("O1234", 2),
+        ("comment", 2),
+        ("N", 4),
+        ("G40", 4),
+        ("G49", 4),
+        ("G80", 4),
+        ("T1", 5),
+        ("M6", 5),
+        ("G54", 6),
+        ("G43 H1", 7),
+        ("S12000", 8),
+        ("M3", 8),
+        ("M8", 9),
+        ("G83", 16),
+        ("G28", 19),
+        ("M30", 20),
+    ] {
+        let hits: Vec<&String> = warnings
+            .iter()
+            .filter(|w| w.contains(&format!(": {word}: ")))
+            .collect();
+        assert_eq!(hits.len(), 1, "{word}: {warnings:#?}");
+        assert!(hits[0].starts_with(&format!("line {line}: ")), "{hits:?}");
+    }
+    assert!(!warnings.iter().any(|w| w.contains("Q1")), "{warnings:#?}");
+    // The tool-tip path: down to the hole bottom Z-10 at X20 and X30, Z50 at the start.
+    let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+    let zmin = cmd.iter().map(|r| r[2]).fold(f64::MAX, f64::min);
+    let zmax = cmd.iter().map(|r| r[2]).fold(f64::MIN, f64::max);
+    assert!(
+        (zmin + 10.0).abs() < 1e-3 && (zmax - 50.0).abs() < 1e-3,
+        "{zmin} {zmax}"
+    );
+    let line: Vec<u32> = serde_json::from_value(b["line"].clone()).unwrap();
+    assert!(line.contains(&17) && line.contains(&13));
+    // Strict: 422 naming the first such line and word.
+    let r = contour(&app, "m", &json!({"gcode": POST, "strict": true})).await;
+    assert_problem(r, 422, &["line 1", "%", "strict"]).await;
+    let body = POST.replacen(
+        "%\nO1234 (FINISH POCKET)\n(T1 D6 FLAT ENDMILL)\nN10 ",
+        "",
+        1,
+    );
+    let r = contour(&app, "m", &json!({"gcode": body, "strict": true})).await;
+    assert_problem(r, 422, &["line 1", "G40"]).await;
+}
+on_both_backends!(post_processor_program_lenient_and_strict);
+
+async fn offsets_tool_lengths_and_inch_programs(app: TestApp) {
+    put_machine(&app, "m", &xyz_kv(30.0, 0.0)).await;
+    let body = json!({"gcode": POST, "work_offsets": {"G54": [100.0, -20.0, 5.0]},
+        "tool_lengths": {"1": 80.0}, "home": [0.0, 0.0, 200.0]});
+    let r = contour(&app, "m", &body).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    let warnings: Vec<String> = serde_json::from_value(b["warnings"].clone()).unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("G54") && w.contains("[100, -20, 5]"))
+    );
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("G43 H1") && w.contains("80 mm"))
+    );
+    assert!(!warnings.iter().any(|w| w.contains("G28")), "{warnings:#?}");
+    let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+    let line: Vec<u32> = serde_json::from_value(b["line"].clone()).unwrap();
+    // The hole bottom in machine Z: -10 + work offset 5 + tool length 80.
+    let zmin = (0..cmd.len())
+        .filter(|&i| line[i] == 16)
+        .map(|i| cmd[i][2])
+        .fold(f64::MAX, f64::min);
+    assert!((zmin - (-10.0 + 5.0 + 80.0)).abs() < 1e-3, "{zmin}");
+    let last = cmd.last().unwrap();
+    assert!(
+        (last[0] - 130.0).abs() < 1e-9 && (last[2] - 200.0).abs() < 1e-9,
+        "{last:?}"
+    );
+    // Bad keys are the caller's to fix.
+    let r = contour(
+        &app,
+        "m",
+        &json!({"gcode": POST, "work_offsets": {"G60": [0.0, 0.0, 0.0]}}),
+    )
+    .await;
+    assert_problem(r, 400, &["work_offsets.G60", "G54"]).await;
+    let r = contour(
+        &app,
+        "m",
+        &json!({"gcode": POST, "tool_lengths": {"T1": 5.0}}),
+    )
+    .await;
+    assert_problem(r, 400, &["tool_lengths.T1"]).await;
+    // An inch program answers the path of its mm twin.
+    let mm =
+        "G21 G17 G90\nG0 X25.4 Y0\nG1 Z-2.54 F2540\nG2 X0 Y25.4 R25.4\nG3 X-25.4 Y0 I0 J-25.4\n";
+    let inch = "G20 G17 G90\nG0 X1 Y0\nG1 Z-.1 F100\nG2 X0 Y1 R1\nG3 X-1 Y0 I0 J-1\n";
+    let mut answers = Vec::new();
+    for text in [mm, inch] {
+        let r = contour(&app, "m", &json!({"gcode": text})).await;
+        assert_eq!(r.status(), 200);
+        let b: Value = r.json().await.unwrap();
+        let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+        answers.push(cmd);
+    }
+    assert_eq!(answers[0].len(), answers[1].len());
+    for (a, b) in answers[0].iter().zip(&answers[1]) {
+        for k in 0..3 {
+            assert!((a[k] - b[k]).abs() < 1e-6, "{a:?} vs {b:?}");
+        }
+    }
+}
+on_both_backends!(offsets_tool_lengths_and_inch_programs);
 
 async fn bad_requests_are_4xx(app: TestApp) {
     let r = contour(&app, "nope", &json!({"gcode": "G1 X1 F100"})).await;

@@ -1,446 +1,393 @@
-//! G-code reader: an ISO 6983 / Fanuc-style subset with Sinumerik TRAORI/TRAFOOF.
+//! G-code reader: an ISO 6983 / Fanuc-style reader, lenient by default, strict on request.
 //!
 //! Hand-written: the `gcode` crate panics on inputs such as `M0444444444` under fuzzing
-//! (see DESIGN.md), and we need line-accurate typed errors for anything unsupported.
+//! (see DESIGN.md), and we need line-accurate typed errors and warnings.
 //!
-//! Supported: G0 G1 G2 G3 (IJK or R, full circles, helical third axis), G4 dwell (X s or
-//! P ms), G17/G18/G19, G20/G21, G90/G91, G93/G94, G43.4/G49 and TRAORI/TRAFOOF (RTCP on/off),
-//! the harmless cancels G40 G80 and G54 (taken as program zero = machine zero), words
-//! X Y Z A C I J K R F N S T H D P, M0..M9 and M30 (M2/M30 end the program), comments in
-//! parentheses and after `;`, `%` and `O` lines. Everything else is an
-//! [`Error::UnsupportedCode`] naming the line and the code.
+//! Modelled (they move the tool): G0 G1 G2 G3 (IJK or R, negative R > 180°, full circles,
+//! helical third axis), G4 dwell (X s or P ms), G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1
+//! (absolute / incremental arc centres), G93/G94, G43.4/G49 and TRAORI/TRAFOOF (RTCP), modal
+//! motion lines without a G word, canned cycles G73/G81/G82/G83/G85 with G98/G99 (G80
+//! cancels; `super::cycles`), G54..G59 with caller-given offsets, G43 H with caller-given
+//! tool lengths, G28/G30/G53 with a caller-given home. Passed through with a warning (each
+//! word once, [`Warning`]), or refused under `strict`: comments, `%`, O numbers, N, S, T, D,
+//! H, M codes, F-only lines, G40/G41/G42, G49, G61/G64, G80, block delete `/` (read with the
+//! switch off), offsets and tool lengths the caller did not give, G28 without a home (the
+//! axes it names are unknown until programmed absolutely again; the lines that ran meanwhile
+//! are named), axes B U V W that never change value. Everything else (G12.1, macros `#`,
+//! CYCLE800, a moving B axis, ...) is an error naming the line and the code.
 //!
-//! The reader itself; its tests are in `super::tests`.
+//! [`parse`] is the reader as it was before warnings: what it accepted then passes silently,
+//! everything else is [`Error::UnsupportedCode`]. Tests are in `super::tests`.
 
+use super::cycles::Cycle;
+use super::lexer::{Lexed, g_name, lex, word_name};
+use super::options::{Legacy, Mode, Notes, ReadOptions, Warning};
 use crate::motion::error::Error;
-use crate::motion::program::{ArcWords, Block, Feed, Motion, Plane, Pose, Program, arc_geometry};
-const MM_PER_INCH: f64 = 25.4;
-/// Largest coordinate magnitude accepted (mm or degrees); beyond this a number is a typo.
-const MAX_ABS_VALUE: f64 = 1.0e7;
+use crate::motion::program::{Plane, Pose, Program};
+
+pub(super) const MM_PER_INCH: f64 = 25.4;
 
 #[derive(Clone, Copy, PartialEq, Eq, Debug)]
-enum MotionMode {
+pub(super) enum MotionMode {
     Rapid,
     Linear,
     ArcCw,
     ArcCcw,
 }
 
-struct Modal {
-    motion: Option<MotionMode>,
-    plane: Plane,
-    inch: bool,
-    incremental: bool,
-    inverse_time: bool,
-    feed_mm_min: Option<f64>,
-    rtcp: bool,
-    pose: Pose,
+pub(super) struct Modal {
+    pub(super) motion: Option<MotionMode>,
+    pub(super) plane: Plane,
+    pub(super) inch: bool,
+    pub(super) incremental: bool,
+    pub(super) absolute_centres: bool,
+    pub(super) inverse_time: bool,
+    pub(super) feed_mm_min: Option<f64>,
+    pub(super) rtcp: bool,
+    /// Position in the machine frame (program point + work offset + tool length on Z).
+    pub(super) pose: Pose,
+    /// Work offset in force, mm.
+    pub(super) work_mm: [f64; 3],
+    /// Tool length in force (G43 H), mm.
+    pub(super) tool_mm: f64,
+    pub(super) cycle: Option<Cycle>,
+    /// G98 (true, default) or G99.
+    pub(super) to_initial: bool,
+    /// Axes (X, Y, Z) whose position is unknown after G28/G30/G53 without a home, with the
+    /// line that made them so.
+    pub(super) unknown: [Option<usize>; 3],
+    /// Last value of each unmodelled axis word B, U, V, W.
+    pub(super) still_axes: [Option<f64>; 4],
 }
 
-/// Words of one line, each at most once.
-#[derive(Default)]
-struct Words {
-    vals: [Option<f64>; 26],
-}
-
-impl Words {
-    fn get(&self, letter: u8) -> Option<f64> {
-        self.vals[(letter - b'A') as usize]
+impl Modal {
+    pub(super) fn shift(&self, k: usize) -> f64 {
+        self.work_mm[k] + if k == 2 { self.tool_mm } else { 0.0 }
     }
 }
 
-/// Parses a whole program.
+/// Parses a whole program as the reader did before warnings existed: words it passed
+/// silently still pass, every other word is an [`Error::UnsupportedCode`].
 ///
 /// The machine starts at program zero (X0 Y0 Z0 A0 C0), in G90 G17 G21 G94, RTCP off, with
 /// no motion mode and no feed. Zero-length moves are kept (after an RTCP switch they
 /// still move the machine); the interpolator drops those that move nothing.
 /// Never panics; every rejected input yields a typed [`Error`] naming the 1-based line.
 pub fn parse(text: &str) -> Result<Program, Error> {
-    let mut m = Modal {
-        motion: None,
-        plane: Plane::Xy,
-        inch: false,
-        incremental: false,
-        inverse_time: false,
-        feed_mm_min: None,
-        rtcp: false,
-        pose: Pose::default(),
+    read(text, &ReadOptions::default(), Mode::Legacy).map(|(p, _)| p)
+}
+
+/// Parses a whole program with `options`: lenient (the default: words that do not move an
+/// axis or that the reader cannot model are [`Warning`]s, the programmed tool-tip path is
+/// kept) or strict (each such word is an [`Error::Gcode`] naming the line and the word).
+/// Coordinates in the answer are mm in the machine frame: program point + work offset
+/// (G54..G59) + tool length on Z (G43 H), inch programs (G20) converted.
+/// Never panics.
+pub fn parse_with(text: &str, options: &ReadOptions) -> Result<(Program, Vec<Warning>), Error> {
+    let mode = if options.strict {
+        Mode::Strict
+    } else {
+        Mode::Lenient
     };
-    let mut prog = Program::default();
+    read(text, options, mode)
+}
+
+fn read(text: &str, opts: &ReadOptions, mode: Mode) -> Result<(Program, Vec<Warning>), Error> {
+    let mut r = Reader {
+        opts,
+        notes: Notes::new(mode),
+        m: Modal {
+            motion: None,
+            plane: Plane::Xy,
+            inch: false,
+            incremental: false,
+            absolute_centres: false,
+            inverse_time: false,
+            feed_mm_min: None,
+            rtcp: false,
+            pose: Pose::default(),
+            work_mm: [0.0; 3],
+            tool_mm: 0.0,
+            cycle: None,
+            to_initial: true,
+            unknown: [None; 3],
+            still_axes: [None; 4],
+        },
+        prog: Program::default(),
+    };
     for (idx, raw) in text.lines().enumerate() {
         let line = idx + 1;
-        let ended = parse_line(raw, line, &mut m, &mut prog)?;
-        if ended {
+        let lexed = lex(raw, line)?;
+        if r.apply(line, &lexed)? {
             break;
         }
     }
-    Ok(prog)
+    Ok((r.prog, r.notes.list))
 }
 
-fn strip_comments(raw: &str, line: usize) -> Result<String, Error> {
-    let mut out = String::with_capacity(raw.len());
-    let mut depth = false;
-    for ch in raw.chars() {
-        match ch {
-            ';' if !depth => break,
-            '(' if !depth => depth = true,
-            '(' => return Err(Error::gcode(line, "nested '(' in a comment")),
-            ')' if depth => depth = false,
-            ')' => return Err(Error::gcode(line, "')' without a matching '('")),
-            _ if depth => {}
-            _ => out.push(ch.to_ascii_uppercase()),
-        }
-    }
-    if depth {
-        return Err(Error::gcode(line, "comment '(' is not closed on this line"));
-    }
-    Ok(out)
+pub(super) struct Reader<'a> {
+    pub(super) opts: &'a ReadOptions,
+    pub(super) notes: Notes,
+    pub(super) m: Modal,
+    pub(super) prog: Program,
 }
 
-/// Reads one line; returns true when the program ends (M2/M30).
-fn parse_line(raw: &str, line: usize, m: &mut Modal, prog: &mut Program) -> Result<bool, Error> {
-    let text = strip_comments(raw, line)?;
-    let bytes = text.as_bytes();
-    let trimmed = text.trim();
-    if trimmed.is_empty() || trimmed == "%" {
-        return Ok(false);
+/// What the G words of one line asked for, beyond modal state.
+#[derive(Default)]
+struct LineCodes {
+    motion: Option<MotionMode>,
+    dwell: bool,
+    tool_length: bool,
+    home: Option<u32>,
+    cycle: Option<u32>,
+}
+
+impl Reader<'_> {
+    /// Names the words of a line that do not move anything.
+    fn passive_words(&mut self, line: usize, l: &Lexed) -> Result<(), Error> {
+        use Legacy::{Accepted, Refused};
+        let n = &mut self.notes;
+        if l.block_delete {
+            n.note(
+                line,
+                "/",
+                "block delete read with the switch off: the block is executed",
+                Refused,
+            )?;
+        }
+        if l.percent {
+            n.note(line, "%", "tape start/end mark passed through", Accepted)?;
+        }
+        if let Some(o) = &l.program_number {
+            n.note(line, o.clone(), "program number passed through", Accepted)?;
+        }
+        if l.comment {
+            n.note(line, "comment", "comments are passed through", Accepted)?;
+        }
+        if l.numbered {
+            n.note(line, "N", "line numbers are passed through", Accepted)?;
+        }
+        let w = &l.words;
+        for (letter, what) in [
+            (b'S', "spindle speed: not modelled"),
+            (b'T', "tool select: not modelled"),
+            (
+                b'D',
+                "cutter radius offset number: the programmed tool-tip path is used",
+            ),
+        ] {
+            if let Some(v) = w.get(letter) {
+                n.note(line, word_name(letter as char, v), what, Accepted)?;
+            }
+        }
+        Ok(())
     }
-    if trimmed.starts_with('O') || trimmed.starts_with(':') {
-        // Program number line (Fanuc O1234 or :1234): no action.
-        return Ok(false);
-    }
-    let mut words = Words::default();
-    let mut gcodes: Vec<u32> = Vec::new();
-    let mut mcodes: Vec<u32> = Vec::new();
-    let mut keywords: Vec<&'static str> = Vec::new();
-    let mut i = 0;
-    while i < bytes.len() {
-        let b = bytes[i];
-        if b.is_ascii_whitespace() {
-            i += 1;
-            continue;
-        }
-        if !b.is_ascii_uppercase() {
-            let code: String = text[i..]
-                .chars()
-                .next()
-                .map(String::from)
-                .unwrap_or_default();
-            return Err(Error::UnsupportedCode { line, code });
-        }
-        // A run of letters is a keyword (TRAORI, TRAFOOF, ...).
-        let mut j = i + 1;
-        while j < bytes.len() && bytes[j].is_ascii_uppercase() {
-            j += 1;
-        }
-        if j > i + 1 {
-            let kw = &text[i..j];
-            match kw {
-                "TRAORI" => keywords.push("TRAORI"),
-                "TRAFOOF" => keywords.push("TRAFOOF"),
-                _ => {
-                    return Err(Error::UnsupportedCode {
+
+    /// Reads one lexed line; returns true when the program ends (M2/M30).
+    fn apply(&mut self, line: usize, l: &Lexed) -> Result<bool, Error> {
+        use Legacy::{Accepted, Refused};
+        self.passive_words(line, l)?;
+        let w = &l.words;
+        let mut c = LineCodes::default();
+        for &g in &l.gcodes {
+            let name = g_name(g);
+            let mut set_motion = |mm: MotionMode| {
+                if c.motion.is_some() || c.cycle.is_some() {
+                    return Err(Error::gcode(
                         line,
-                        code: kw.to_string(),
-                    });
+                        "two motion codes (G0/G1/G2/G3 or a cycle) on one line",
+                    ));
                 }
-            }
-            i = j;
-            continue;
-        }
-        // Letter + number (spaces allowed between them, as Fanuc does).
-        let mut k = i + 1;
-        while k < bytes.len() && bytes[k] == b' ' {
-            k += 1;
-        }
-        let num_start = k;
-        if k < bytes.len() && (bytes[k] == b'+' || bytes[k] == b'-') {
-            k += 1;
-        }
-        let mut digits = 0;
-        let mut dots = 0;
-        while k < bytes.len() && (bytes[k].is_ascii_digit() || bytes[k] == b'.') {
-            if bytes[k] == b'.' {
-                dots += 1;
-            } else {
-                digits += 1;
-            }
-            k += 1;
-        }
-        let letter = b as char;
-        if digits == 0 || dots > 1 {
-            return Err(Error::gcode(
-                line,
-                format!("word '{letter}' needs a number (e.g. {letter}10.5)"),
-            ));
-        }
-        let value: f64 = text[num_start..k]
-            .parse()
-            .map_err(|_| Error::gcode(line, format!("bad number after '{letter}'")))?;
-        if !value.is_finite() || (value.abs() > MAX_ABS_VALUE && b != b'G' && b != b'M') {
-            return Err(Error::gcode(
-                line,
-                format!("value of '{letter}' is out of range (|v| <= {MAX_ABS_VALUE})"),
-            ));
-        }
-        i = k;
-        match b {
-            b'G' => gcodes.push(code_times_ten(value, 'G', line)?),
-            b'M' => {
-                let c = code_times_ten(value, 'M', line)?;
-                if c % 10 != 0 {
-                    return Err(Error::UnsupportedCode {
-                        line,
-                        code: format!("M{value}"),
-                    });
-                }
-                mcodes.push(c / 10);
-            }
-            b'N' => {}
-            b'X' | b'Y' | b'Z' | b'A' | b'C' | b'I' | b'J' | b'K' | b'R' | b'F' | b'S' | b'T'
-            | b'H' | b'D' | b'P' => {
-                let slot = &mut words.vals[(b - b'A') as usize];
-                if slot.is_some() {
-                    return Err(Error::gcode(line, format!("word '{letter}' appears twice")));
-                }
-                *slot = Some(value);
-            }
-            _ => {
-                return Err(Error::UnsupportedCode {
-                    line,
-                    code: format!("{letter}{}", &text[num_start..k]),
-                });
-            }
-        }
-    }
-    apply_line(line, m, prog, &words, &gcodes, &mcodes, &keywords)
-}
-
-/// G/M number × 10 as an integer (G43.4 → 434); rejects more than one decimal.
-fn code_times_ten(value: f64, letter: char, line: usize) -> Result<u32, Error> {
-    let t = value * 10.0;
-    if !(0.0..10000.0).contains(&t) || (t - t.round()).abs() > 1e-6 {
-        return Err(Error::UnsupportedCode {
-            line,
-            code: format!("{letter}{value}"),
-        });
-    }
-    Ok(t.round() as u32)
-}
-
-fn apply_line(
-    line: usize,
-    m: &mut Modal,
-    prog: &mut Program,
-    w: &Words,
-    gcodes: &[u32],
-    mcodes: &[u32],
-    keywords: &[&'static str],
-) -> Result<bool, Error> {
-    let mut motion_this_line: Option<MotionMode> = None;
-    let mut dwell = false;
-    for &g in gcodes {
-        let set_motion = |mm: MotionMode, cur: &mut Option<MotionMode>| {
-            if cur.is_some() {
-                return Err(Error::gcode(
-                    line,
-                    "two motion codes (G0/G1/G2/G3) on one line",
-                ));
-            }
-            *cur = Some(mm);
-            Ok(())
-        };
-        match g {
-            0 => set_motion(MotionMode::Rapid, &mut motion_this_line)?,
-            10 => set_motion(MotionMode::Linear, &mut motion_this_line)?,
-            20 => set_motion(MotionMode::ArcCw, &mut motion_this_line)?,
-            30 => set_motion(MotionMode::ArcCcw, &mut motion_this_line)?,
-            40 => dwell = true,
-            170 => m.plane = Plane::Xy,
-            180 => m.plane = Plane::Zx,
-            190 => m.plane = Plane::Yz,
-            200 => m.inch = true,
-            210 => m.inch = false,
-            400 | 540 | 800 => {}
-            434 => m.rtcp = true,
-            490 => m.rtcp = false,
-            900 => m.incremental = false,
-            910 => m.incremental = true,
-            930 => {
-                if !m.inverse_time {
-                    m.feed_mm_min = None;
-                }
-                m.inverse_time = true
-            }
-            940 => {
-                if m.inverse_time {
-                    m.feed_mm_min = None;
-                }
-                m.inverse_time = false
-            }
-            _ => {
-                let code = if g % 10 == 0 {
-                    format!("G{}", g / 10)
-                } else {
-                    format!("G{}.{}", g / 10, g % 10)
-                };
-                return Err(Error::UnsupportedCode { line, code });
-            }
-        }
-    }
-    for kw in keywords {
-        m.rtcp = *kw == "TRAORI";
-    }
-    let mut ends = false;
-    for &mc in mcodes {
-        match mc {
-            0..=1 | 3..=9 => {}
-            2 | 30 => ends = true,
-            _ => {
-                return Err(Error::UnsupportedCode {
-                    line,
-                    code: format!("M{mc}"),
-                });
-            }
-        }
-    }
-    let scale = if m.inch { MM_PER_INCH } else { 1.0 };
-    if dwell {
-        if motion_this_line.is_some() {
-            return Err(Error::gcode(
-                line,
-                "G4 dwell cannot share a line with motion",
-            ));
-        }
-        let seconds = match (w.get(b'X'), w.get(b'P')) {
-            (Some(x), None) => x,
-            (None, Some(p)) => p / 1000.0,
-            _ => {
-                return Err(Error::gcode(
-                    line,
-                    "G4 needs exactly one of X (seconds) or P (milliseconds)",
-                ));
-            }
-        };
-        if seconds < 0.0 {
-            return Err(Error::gcode(line, "G4 dwell time must be >= 0"));
-        }
-        if seconds > 0.0 {
-            prog.blocks.push(Block {
-                line,
-                motion: Motion::Dwell { seconds },
-                start: m.pose,
-                end: m.pose,
-                feed: Feed::Rapid,
-                rtcp: m.rtcp,
-            });
-        }
-        return Ok(ends);
-    }
-    if let Some(mm) = motion_this_line {
-        m.motion = Some(mm);
-    }
-    // F word.
-    if let Some(f) = w.get(b'F') {
-        if f <= 0.0 {
-            return Err(Error::gcode(line, "F must be > 0"));
-        }
-        m.feed_mm_min = Some(if m.inverse_time { f } else { f * scale });
-    }
-    let has_axis = [b'X', b'Y', b'Z', b'A', b'C']
-        .iter()
-        .any(|&l| w.get(l).is_some());
-    let has_arc_words = [b'I', b'J', b'K', b'R'].iter().any(|&l| w.get(l).is_some());
-    if !has_axis {
-        if has_arc_words {
-            return Err(Error::gcode(line, "I/J/K/R given without an end point"));
-        }
-        return Ok(ends);
-    }
-    let mode = m.motion.ok_or_else(|| {
-        Error::gcode(
-            line,
-            "axis words without a motion mode: add G0, G1, G2 or G3",
-        )
-    })?;
-    if w.get(b'A').is_some() && prog.first_a_line.is_none() {
-        prog.first_a_line = Some(line);
-    }
-    if w.get(b'C').is_some() && prog.first_c_line.is_none() {
-        prog.first_c_line = Some(line);
-    }
-    let start = m.pose;
-    let mut end = start;
-    for (k, l) in [b'X', b'Y', b'Z'].iter().enumerate() {
-        if let Some(v) = w.get(*l) {
-            end.xyz[k] = if m.incremental {
-                start.xyz[k] + v * scale
-            } else {
-                v * scale
+                c.motion = Some(mm);
+                Ok(())
             };
-        }
-    }
-    if let Some(v) = w.get(b'A') {
-        end.a = if m.incremental { start.a + v } else { v };
-    }
-    if let Some(v) = w.get(b'C') {
-        end.c = if m.incremental { start.c + v } else { v };
-    }
-    let feed = if mode == MotionMode::Rapid {
-        Feed::Rapid
-    } else if m.inverse_time {
-        // G93: F must be programmed on every feed block.
-        match w.get(b'F') {
-            Some(f) => Feed::InverseTime(f),
-            None => {
-                return Err(Error::gcode(
+            match g {
+                0 => set_motion(MotionMode::Rapid)?,
+                10 => set_motion(MotionMode::Linear)?,
+                20 => set_motion(MotionMode::ArcCw)?,
+                30 => set_motion(MotionMode::ArcCcw)?,
+                40 => c.dwell = true,
+                170 => self.m.plane = Plane::Xy,
+                180 => self.m.plane = Plane::Zx,
+                190 => self.m.plane = Plane::Yz,
+                200 => self.m.inch = true,
+                210 => self.m.inch = false,
+                400 => self.notes.note(line, name, "cutter compensation cancel", Accepted)?,
+                410 | 420 => self.notes.note(
                     line,
-                    "G93 inverse-time mode needs F on every G1/G2/G3 block",
-                ));
+                    name,
+                    "cutter radius compensation is not modelled: the programmed tool-tip path is used",
+                    Refused,
+                )?,
+                280 | 300 | 530 => {
+                    self.notes.modelled(line, name)?;
+                    c.home = Some(g);
+                }
+                430 => {
+                    self.notes.modelled(line, name)?;
+                    c.tool_length = true;
+                }
+                440 => self.notes.note(
+                    line,
+                    name,
+                    "negative tool length compensation is not modelled: the programmed tool-tip path is used",
+                    Refused,
+                )?,
+                434 => self.m.rtcp = true,
+                490 => {
+                    self.m.rtcp = false;
+                    self.m.tool_mm = 0.0;
+                    self.notes.note(line, name, "tool length compensation cancelled", Accepted)?;
+                }
+                540..=590 if g % 10 == 0 => self.work_offset(line, g)?,
+                610 | 611 | 640 => self.notes.note(
+                    line,
+                    name,
+                    "path-control mode is not modelled: the service's own look-ahead is used",
+                    Refused,
+                )?,
+                150 | 500 | 501 | 670 | 690 => self.notes.note(
+                    line,
+                    name,
+                    "cancel of a mode the reader does not model: no effect",
+                    Refused,
+                )?,
+                800 => {
+                    self.m.cycle = None;
+                    self.notes.note(line, name, "canned cycle cancel", Accepted)?;
+                }
+                730 | 810 | 820 | 830 | 850 => {
+                    self.notes.modelled(line, name.clone())?;
+                    if c.motion.is_some() || c.cycle.is_some() {
+                        return Err(Error::gcode(line, "two motion codes (G0/G1/G2/G3 or a cycle) on one line"));
+                    }
+                    if matches!(g, 730 | 830) {
+                        self.notes.note(
+                            line,
+                            name,
+                            "pecks (Q) retract along the hole's axis: the path is fed straight to Z, the peck time is not modelled",
+                            Refused,
+                        )?;
+                    }
+                    c.cycle = Some(g / 10);
+                    // Cycles share G0..G3's modal group: after G80 nothing is in force.
+                    self.m.motion = None;
+                }
+                900 => self.m.incremental = false,
+                910 => self.m.incremental = true,
+                901 | 911 => {
+                    self.notes.modelled(line, name)?;
+                    self.m.absolute_centres = g == 901;
+                }
+                930 => {
+                    if !self.m.inverse_time {
+                        self.m.feed_mm_min = None;
+                    }
+                    self.m.inverse_time = true
+                }
+                940 => {
+                    if self.m.inverse_time {
+                        self.m.feed_mm_min = None;
+                    }
+                    self.m.inverse_time = false
+                }
+                980 | 990 => {
+                    self.notes.modelled(line, name)?;
+                    self.m.to_initial = g == 980;
+                }
+                _ => return Err(Error::UnsupportedCode { line, code: name }),
             }
         }
-    } else {
-        match m.feed_mm_min {
-            Some(f) => Feed::PerMinute(f),
-            None => {
-                return Err(Error::gcode(
-                    line,
-                    "feed move without a feed rate: add an F word",
-                ));
+        for kw in &l.keywords {
+            self.m.rtcp = *kw == "TRAORI";
+        }
+        let ends = self.m_codes(line, &l.mcodes)?;
+        self.still_axes(line, l)?;
+        if c.tool_length {
+            self.tool_length(line, w.get(b'H'))?;
+        } else if let Some(h) = w.get(b'H') {
+            let what = if l.gcodes.contains(&434) {
+                "tool length number of G43.4: RTCP uses the machine's geometry.tool_length"
+            } else {
+                "tool length offset number without G43: not used"
+            };
+            self.notes.note(line, word_name('H', h), what, Accepted)?;
+        }
+        if let Some(q) = w.get(b'Q') {
+            if c.cycle.is_none() && self.m.cycle.is_none() {
+                self.notes
+                    .note(line, word_name('Q', q), "not used by the motion", Refused)?;
             }
         }
-    };
-    let motion = match mode {
-        MotionMode::Rapid | MotionMode::Linear => {
+        if let Some(v) = w.get(b'L') {
+            self.notes.note(
+                line,
+                word_name('L', v),
+                "repeat count / data word not modelled",
+                Refused,
+            )?;
+        }
+        let scale = self.scale();
+        if c.dwell {
+            self.dwell(line, l, c.motion.is_some())?;
+            return Ok(ends);
+        }
+        if let Some(p) = w.get(b'P') {
+            let in_cycle = c.cycle.is_some() || self.m.cycle.is_some();
+            if !in_cycle {
+                self.notes
+                    .note(line, word_name('P', p), "not used by the motion", Accepted)?;
+            }
+        }
+        if let Some(mm) = c.motion {
+            self.m.motion = Some(mm);
+            self.m.cycle = None;
+        }
+        if let Some(f) = w.get(b'F') {
+            if f <= 0.0 {
+                return Err(Error::gcode(line, "F must be > 0"));
+            }
+            self.m.feed_mm_min = Some(if self.m.inverse_time { f } else { f * scale });
+        }
+        let has_axis = [b'X', b'Y', b'Z', b'A', b'C']
+            .iter()
+            .any(|&k| w.get(k).is_some());
+        if let Some(g) = c.home {
+            self.home(line, g, l)?;
+            return Ok(ends);
+        }
+        if let Some(code) = c.cycle {
+            self.set_cycle(line, Some(code), l)?;
+            self.drill(line, l)?;
+            return Ok(ends);
+        }
+        if self.m.cycle.is_some() && c.motion.is_none() {
+            if w.get(b'X').is_some() || w.get(b'Y').is_some() {
+                self.set_cycle(line, None, l)?;
+                self.drill(line, l)?;
+            }
+            return Ok(ends);
+        }
+        let has_arc_words = [b'I', b'J', b'K', b'R'].iter().any(|&k| w.get(k).is_some());
+        if !has_axis {
             if has_arc_words {
-                return Err(Error::gcode(line, "I/J/K/R are only allowed with G2/G3"));
+                return Err(Error::gcode(line, "I/J/K/R given without an end point"));
             }
-            Motion::Linear
+            if w.get(b'F').is_some() && c.motion.is_none() {
+                self.notes.note(
+                    line,
+                    "F-only line",
+                    "sets the feed; nothing moves",
+                    Accepted,
+                )?;
+            }
+            return Ok(ends);
         }
-        MotionMode::ArcCw | MotionMode::ArcCcw => {
-            let words = ArcWords {
-                ijk: [w.get(b'I'), w.get(b'J'), w.get(b'K')],
-                r: w.get(b'R'),
-            };
-            arc_geometry(
-                line,
-                m.plane,
-                mode == MotionMode::ArcCw,
-                &start,
-                &end,
-                words,
-                scale,
-            )?
-        }
-    };
-    m.pose = end;
-    prog.blocks.push(Block {
-        line,
-        motion,
-        start,
-        end,
-        feed,
-        rtcp: m.rtcp,
-    });
-    Ok(ends)
+        self.motion_block(line, l, has_arc_words)?;
+        Ok(ends)
+    }
+
+    pub(super) fn scale(&self) -> f64 {
+        if self.m.inch { MM_PER_INCH } else { 1.0 }
+    }
 }

@@ -157,3 +157,317 @@ proptest! {
         }
     }
 }
+
+// ---- lenient / strict reading (issue 14, CONTRACT v1.1 "Reading real programs") ----
+
+/// A finishing program as a Fanuc-style post writes it.
+const POST: &str = "%
+O1234 (FINISH POCKET)
+(T1 D6 FLAT ENDMILL)
+N10 G21 G90 G17 G40 G49 G80
+N20 T1 M6
+N30 G54
+N40 G43 H1 Z50.
+N50 S12000 M3
+N60 M8
+N70 G0 X10. Y0.
+N80 G1 Z-1. F300.
+N90 G3 X0. Y10. I-10. J0.
+N100 G1 X-10.
+N110 G0 Z5.
+N120 G98 G83 X20. Y20. Z-10. R2. Q1. F200.
+N130 X30.
+N140 G80
+N150 G28 G91 Z0.
+N160 M30
+%
+";
+
+fn lenient(text: &str) -> (Program, Vec<Warning>) {
+    parse_with(text, &ReadOptions::default()).unwrap()
+}
+
+fn strict_error(text: &str) -> (usize, String) {
+    let opts = ReadOptions {
+        strict: true,
+        ..ReadOptions::default()
+    };
+    match parse_with(text, &opts) {
+        Err(Error::Gcode { line, message }) => (line, message),
+        other => panic!("{text}: {other:?}"),
+    }
+}
+
+#[test]
+fn post_program_reads_with_each_word_named_once() {
+    let (p, warnings) = lenient(POST);
+    let words: Vec<&str> = warnings.iter().map(|w| w.word.as_str()).collect();
+    for word in [
+        "%", "O1234", "comment", "N", "G40", "G49", "G80", "T1", "M6", "G54", "G43 H1", "S12000",
+        "M3", "M8", "G83", "G28", "M30",
+    ] {
+        let n = words.iter().filter(|w| **w == word).count();
+        assert_eq!(n, 1, "{word} in {words:?}");
+    }
+    assert!(!words.iter().any(|w| w.starts_with('Q')), "{words:?}");
+    let first = |word: &str| warnings.iter().find(|w| w.word == word).unwrap().line;
+    assert_eq!(first("%"), 1);
+    assert_eq!(first("comment"), 2);
+    assert_eq!(first("G43 H1"), 7);
+    assert!(warnings[0].to_string().starts_with("line 1: %: "));
+    // The tool-tip path: Z50 (no tool length given), the arc, the two holes.
+    assert_eq!(p.blocks[0].end.xyz, [0.0, 0.0, 50.0]);
+    let arc = p.blocks.iter().find(|b| b.line == 12).unwrap();
+    assert!(matches!(arc.motion, Motion::Arc { .. }));
+    let holes: Vec<&Block> = p.blocks.iter().filter(|b| b.line == 15).collect();
+    let bottom = holes.iter().map(|b| b.end.xyz[2]).fold(f64::MAX, f64::min);
+    assert_eq!(bottom, -10.0);
+    // G98: back to the initial level (Z5) after each hole; the second hole at X30.
+    let last = p.blocks.iter().rfind(|b| b.line == 16).unwrap();
+    assert_eq!(last.end.xyz, [30.0, 20.0, 5.0]);
+    // G28 G91 Z0: through the intermediate point (here, where it is); Z unknown after, and
+    // nothing moves before M30.
+    assert_eq!(p.blocks.last().unwrap().line, 16);
+}
+
+#[test]
+fn strict_refuses_each_word_naming_line_and_word() {
+    let (line, message) = strict_error(POST);
+    assert_eq!(line, 1);
+    assert!(message.starts_with("%:"), "{message}");
+    for (text, line, word) in [
+        ("G1 X1 F100\nG41 D1 X2", 2, "D1"),
+        ("G1 X1 F100\nG41 X2", 2, "G41"),
+        ("G0 X1\nM3", 2, "M3"),
+        ("G0 X1\nS1000", 2, "S1000"),
+        ("G0 X1\n(comment)", 2, "comment"),
+        ("G0 X1\nG55 G0 X2", 2, "G55"),
+        ("/G0 X1", 1, "/"),
+    ] {
+        let (l, m) = strict_error(text);
+        assert_eq!(l, line, "{text}");
+        assert!(m.starts_with(word), "{text}: {m}");
+        assert!(m.contains("strict"), "{m}");
+    }
+}
+
+#[test]
+fn the_old_subset_still_refuses_what_it_refused() {
+    for (text, code) in [
+        ("G43 H1 Z5", "G43"),
+        ("G55", "G55"),
+        ("G81 X1 Y1 Z-1 R1 F10", "G81"),
+        ("G1 X1 F1\nM98 P100", "M98"),
+        ("G1 X1 F1\nQ1", "Q1"),
+        ("/G1 X1 F1", "/"),
+    ] {
+        match parse(text) {
+            Err(Error::UnsupportedCode { code: c, .. }) => assert_eq!(c, code, "{text}"),
+            other => panic!("{text}: {other:?}"),
+        }
+    }
+}
+
+#[test]
+fn inch_program_is_its_mm_twin() {
+    let mm = "G21 G90 G17\nG0 X25.4 Y0\nG1 Z-2.54 F254\nG2 X0 Y25.4 R25.4\nG3 X-25.4 Y0 I0 J-25.4\n\
+              G81 X50.8 Y50.8 Z-12.7 R2.54 F127\nG80";
+    let inch = "G20 G90 G17\nG0 X1 Y0\nG1 Z-.1 F10\nG2 X0 Y1 R1\nG3 X-1 Y0 I0 J-1\n\
+                G81 X2 Y2 Z-.5 R.1 F5\nG80";
+    let (a, _) = lenient(mm);
+    let (b, _) = lenient(inch);
+    assert_eq!(a.blocks.len(), b.blocks.len());
+    for (x, y) in a.blocks.iter().zip(&b.blocks) {
+        for k in 0..3 {
+            assert!((x.end.xyz[k] - y.end.xyz[k]).abs() < 1e-9, "{x:?} {y:?}");
+        }
+        match (x.feed, y.feed) {
+            (Feed::PerMinute(f), Feed::PerMinute(g)) => assert!((f - g).abs() < 1e-9),
+            (f, g) => assert_eq!(f, g),
+        }
+        assert_eq!(
+            std::mem::discriminant(&x.motion),
+            std::mem::discriminant(&y.motion)
+        );
+    }
+}
+
+#[test]
+fn absolute_arc_centres_match_incremental_ones() {
+    let inc = one("G1 X10 Y5 F100\nG3 X0 Y15 I-10 J0");
+    let (p, w) = lenient("G90.1\nG1 X10 Y5 F100\nG3 X0 Y15 I0 J5");
+    assert!(w.is_empty(), "{w:?}");
+    assert_eq!(p.blocks.last().unwrap().motion, inc.motion);
+}
+
+#[test]
+fn block_delete_runs_the_block_with_a_warning() {
+    let (p, w) = lenient("G1 X1 F100\n/G1 X2\nX3");
+    assert_eq!(p.blocks.len(), 3);
+    assert_eq!(p.blocks[1].end.xyz[0], 2.0);
+    assert_eq!((w[0].line, w[0].word.as_str()), (2, "/"));
+}
+
+#[test]
+fn canned_cycles_expand_with_r_plane_semantics() {
+    // G99 G81: rapid XY, rapid to R, feed to Z, rapid to R; next hole modal; G80 cancels.
+    let (p, _) = lenient("G0 Z10\nG99 G81 X5 Y5 Z-3 R1 F60\nX8\nG80");
+    let path: Vec<([f64; 3], bool)> = p
+        .blocks
+        .iter()
+        .map(|b| (b.end.xyz, b.feed == Feed::Rapid))
+        .collect();
+    assert_eq!(
+        path,
+        vec![
+            ([0.0, 0.0, 10.0], true),
+            ([5.0, 5.0, 10.0], true),
+            ([5.0, 5.0, 1.0], true),
+            ([5.0, 5.0, -3.0], false),
+            ([5.0, 5.0, 1.0], true),
+            ([8.0, 5.0, 1.0], true),
+            ([8.0, 5.0, -3.0], false),
+            ([8.0, 5.0, 1.0], true),
+        ]
+    );
+    // X0 after G80: no motion mode in force, so no hole: read as G0 with a warning.
+    let (p, w) = lenient("G81 X1 Z-1 R1 F10\nG80\nX0");
+    assert_eq!(p.blocks.last().unwrap().feed, Feed::Rapid);
+    assert_eq!(p.blocks.last().unwrap().end.xyz, [0.0, 0.0, 1.0]);
+    assert!(w.iter().any(|w| w.line == 3 && w.word == "no motion mode"));
+    // G98 G82 dwell P ms, G85 feeds back; G91: R from the initial level, Z from R.
+    let (p, _) = lenient("G0 Z10\nG98 G82 X1 Z-2 R2 P500 F60\nG85 X2\nG91 G81 X1 R-7 Z-4");
+    let dwell = p
+        .blocks
+        .iter()
+        .find(|b| matches!(b.motion, Motion::Dwell { .. }));
+    assert_eq!(dwell.unwrap().motion, Motion::Dwell { seconds: 0.5 });
+    assert_eq!(p.blocks[p.blocks.len() - 1].end.xyz, [3.0, 0.0, 10.0]);
+    let g85: Vec<&Block> = p.blocks.iter().filter(|b| b.line == 3).collect();
+    assert!(matches!(g85[g85.len() - 2].feed, Feed::PerMinute(_)));
+    let bottom = p
+        .blocks
+        .iter()
+        .filter(|b| b.line == 4)
+        .map(|b| b.end.xyz[2]);
+    assert_eq!(bottom.fold(f64::MAX, f64::min), -1.0);
+}
+
+#[test]
+fn work_offsets_and_tool_lengths_from_the_caller() {
+    let mut opts = ReadOptions::default();
+    opts.work_offsets_mm[1] = Some([100.0, 200.0, -50.0]);
+    opts.tool_lengths_mm.insert(3, 80.0);
+    let text = "G55 G43 H3 G0 X1 Y2 Z3\nG49 G0 Z3\nG56 G0 X0";
+    let (p, w) = parse_with(text, &opts).unwrap();
+    assert_eq!(p.blocks[0].end.xyz, [101.0, 202.0, 33.0]);
+    assert_eq!(p.blocks[1].end.xyz, [101.0, 202.0, -47.0]);
+    assert_eq!(p.blocks[2].end.xyz, [0.0, 202.0, -47.0]);
+    let named: Vec<String> = w.iter().map(ToString::to_string).collect();
+    assert!(
+        named[0].contains("G55") && named[0].contains("[100, 200, -50]"),
+        "{named:?}"
+    );
+    assert!(
+        named
+            .iter()
+            .any(|s| s.contains("G43 H3") && s.contains("80 mm"))
+    );
+    assert!(
+        named
+            .iter()
+            .any(|s| s.contains("G56") && s.contains("zero"))
+    );
+    // Strict accepts offsets it was given, refuses the one it was not.
+    opts.strict = true;
+    let e = parse_with(text, &opts).unwrap_err();
+    assert!(matches!(e, Error::Gcode { line: 2, ref message } if message.starts_with("G49")));
+}
+
+#[test]
+fn g28_without_home_names_the_lines_at_unknown_positions() {
+    let text = "G1 X10 Y10 Z10 F100\nG91 G28 Z5\nG90 G1 X20\nG1 Z2\nG1 X30";
+    let (p, w) = lenient(text);
+    // The intermediate point is known (Z15), then Z is unknown until Z2 (line 4).
+    assert_eq!(p.blocks[1].end.xyz, [10.0, 10.0, 15.0]);
+    let lines: Vec<usize> = p.blocks.iter().map(|b| b.line).collect();
+    assert_eq!(lines, vec![1, 2, 4, 5]);
+    assert!(w.iter().any(|w| w.word == "G28" && w.message.contains('Z')));
+    assert!(
+        w.iter()
+            .any(|w| w.line == 3 && w.message.contains("unknown"))
+    );
+    assert!(
+        w.iter()
+            .any(|w| w.line == 4 && w.message.contains("unknown"))
+    );
+    // With a home: through the intermediate point to home.
+    let opts = ReadOptions {
+        home_mm: Some([0.0, 0.0, 100.0]),
+        ..ReadOptions::default()
+    };
+    let (p, _) = parse_with(text, &opts).unwrap();
+    assert_eq!(p.blocks[2].end.xyz, [10.0, 10.0, 100.0]);
+    assert_eq!(p.blocks[3].end.xyz, [20.0, 10.0, 100.0]);
+}
+
+#[test]
+fn unmodelled_axes_pass_while_still_and_fail_when_moving() {
+    let (_, w) = lenient("G0 X1 B0\nG0 X2 B0");
+    assert_eq!(w.len(), 1);
+    assert_eq!((w[0].line, w[0].word.as_str()), (1, "B0"));
+    let e = parse_with("G0 X1 B0\nG0 X2 B10", &ReadOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::Gcode { line: 2, .. }), "{e:?}");
+    // Unknown G codes and macros stay errors even when lenient.
+    for text in ["G12.1", "G1 X1 F1\nG1 X2 #1", "CYCLE800()"] {
+        assert!(parse_with(text, &ReadOptions::default()).is_err(), "{text}");
+    }
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(1000))]
+    #[test]
+    fn lenient_reading_never_panics(
+        s in "(/?[GMXYZACIJKRFNPHTQSBL][-+]?[0-9]{0,3}(\\.[0-9]{0,3})?[ ;()\n%]?){0,40}"
+    ) {
+        let mut opts = ReadOptions { home_mm: Some([1.0, 2.0, 3.0]), ..ReadOptions::default() };
+        opts.tool_lengths_mm.insert(1, 50.0);
+        if let Ok((p, _)) = parse_with(&s, &opts) {
+            for b in &p.blocks {
+                let q = b.pose_at(0.37);
+                prop_assert!(q.xyz.iter().all(|v| v.is_finite()));
+            }
+        }
+    }
+}
+
+#[test]
+fn g53_and_g30_with_a_home_move_to_machine_positions() {
+    let mut opts = ReadOptions {
+        home_mm: Some([-5.0, -5.0, 80.0]),
+        ..ReadOptions::default()
+    };
+    opts.work_offsets_mm[0] = Some([10.0, 0.0, 0.0]);
+    let (p, w) = parse_with("G54 G0 X1 Z5\nG53 G0 Z60\nG30 X2\nG0 X0", &opts).unwrap();
+    let ends: Vec<[f64; 3]> = p.blocks.iter().map(|b| b.end.xyz).collect();
+    // G53: machine Z60 (no offset); G30 X2: through program X2 (machine 12) to home X.
+    assert_eq!(
+        ends,
+        vec![
+            [11.0, 0.0, 5.0],
+            [11.0, 0.0, 60.0],
+            [12.0, 0.0, 60.0],
+            [-5.0, 0.0, 60.0],
+            [10.0, 0.0, 60.0]
+        ]
+    );
+    assert_eq!(w.len(), 1, "{w:?}");
+    // G53 without a home: the axes it names are unknown until programmed absolutely.
+    let (p, w) = lenient("G0 X1\nG53 Z0\nG0 X2\nG0 Z3 X4");
+    assert_eq!(p.blocks.len(), 2);
+    assert!(w.iter().any(|w| w.word == "G53"));
+    assert!(
+        w.iter()
+            .any(|w| w.line == 3 && w.message.contains("unknown"))
+    );
+}
