@@ -5,7 +5,8 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 
-use crate::motion::{DEFAULT_PERIOD_S, predict_contour_error};
+use crate::motion::gcode::{ReadOptions, parse_with};
+use crate::motion::{DEFAULT_PERIOD_S, predict_program};
 
 /// Predict the contour error of a G-code program on a machine (interpolation with RTCP,
 /// servo cascade per axis, distance of the simulated tool tip to the commanded path).
@@ -15,8 +16,14 @@ use crate::motion::{DEFAULT_PERIOD_S, predict_contour_error};
 /// (`--data-dir` / `--database-url`, the same as `truecut serve`).
 #[derive(Debug, clap::Args)]
 pub struct Args {
-    /// G-code file (ISO 6983 / Fanuc subset; G43.4/G49 and TRAORI/TRAFOOF for RTCP).
+    /// G-code file (ISO 6983 / Fanuc subset; G43.4/G49 and TRAORI/TRAFOOF for RTCP). Read
+    /// leniently: words that do not move an axis (T, M, S, comments, G43 H, G54..G59, ...)
+    /// are passed through and printed once each as warnings.
     pub file: PathBuf,
+    /// Refuse every word the lenient reading would pass with a warning (as the route's
+    /// `"strict": true`).
+    #[arg(long)]
+    pub strict: bool,
     /// Machine: path to a machine-definition JSON file, or the id of a stored machine.
     #[arg(long)]
     pub machine: String,
@@ -90,8 +97,21 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let (id, def) = load_machine(&args)?;
     let def = crate::motion::stored_definition(&id, &def)?;
     let machine = crate::motion::machine_for_simulation(&id, &def)?;
-    let p = predict_contour_error(&machine, &gcode, args.period_s, args.max_periods)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", args.file.display()))?;
+    let options = ReadOptions {
+        strict: args.strict,
+        ..ReadOptions::default()
+    };
+    let at_file = |e: crate::motion::Error| anyhow::anyhow!("{}: {e}", args.file.display());
+    let (mut program, mut warnings) = parse_with(&gcode, &options).map_err(at_file)?;
+    if !options.strict {
+        let has = |name: &str| machine.axes.iter().any(|a| a.name == name);
+        warnings.extend(program.forget_still_rotary_axes(has("A"), has("C")));
+    }
+    for w in &warnings {
+        eprintln!("warning: {}: {w}", args.file.display());
+    }
+    let p =
+        predict_program(&machine, &program, args.period_s, args.max_periods).map_err(at_file)?;
     let r = &p.report;
     let n = p.commanded.t.len();
     let worst = (0..n).fold(0, |b, i| {
@@ -122,7 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("tool orientation error: max {o:.4} deg");
     }
     if let Some(out) = &args.output {
-        let bytes = crate::wire::contour::encode_answer(&machine, &p)?;
+        let bytes = crate::wire::contour::encode_answer_with_warnings(&machine, &p, &warnings)?;
         std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
         println!("full answer written to {}", out.display());
     }

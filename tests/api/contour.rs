@@ -318,4 +318,29 @@ fn cli_predicts_from_a_machine_file_and_names_bad_lines() {
         stderr.contains("line 2") && stderr.contains("G12.1"),
         "{stderr}"
     );
+    // A post's words pass with one warning each on stderr; --strict refuses the first.
+    std::fs::write(&prog, "%\nO1000 (FINISH)\nT1 M6\nG1 X1 F100\nM30\n%\n").unwrap();
+    let run = |strict: bool| {
+        let mut cmd = std::process::Command::new(env!("CARGO_BIN_EXE_truecut"));
+        cmd.args(["contour", prog.to_str().unwrap(), "--machine"])
+            .arg(&machine);
+        if strict {
+            cmd.arg("--strict");
+        }
+        cmd.output().unwrap()
+    };
+    let lenient = run(false);
+    let stderr = String::from_utf8_lossy(&lenient.stderr);
+    assert!(lenient.status.success(), "{stderr}");
+    assert!(
+        stderr.contains("warning:") && stderr.contains("M6") && stderr.contains("O1000"),
+        "{stderr}"
+    );
+    let strict = run(true);
+    let stderr = String::from_utf8_lossy(&strict.stderr);
+    assert!(!strict.status.success());
+    assert!(
+        stderr.contains("line 1") && stderr.contains("strict"),
+        "{stderr}"
+    );
 }
