@@ -8,7 +8,7 @@
 //! - no source file is over 600 lines before its tests;
 //! - one module style: a module with submodules is a folder whose `mod.rs` declares them, a
 //!   leaf module is `foo.rs`, and unit tests live in `foo/tests.rs` (no inline `mod tests {`);
-//! - no test or build step reads outside the repository (`../shared`).
+//! - no test or build step reads outside the repository (the sibling folder of shared docs).
 //!
 //! Each failure names the file, the line and the rule, and says how to fix it.
 
@@ -378,13 +378,13 @@ fn nothing_reads_outside_the_repository() {
     files.extend(rust_files(&root().join("benches")));
     files.push(root().join("build.rs"));
     for f in files.into_iter().filter(|f| f.exists()) {
-        if f.ends_with("tests/tidy.rs") {
-            continue;
-        }
         let text = std::fs::read_to_string(&f).unwrap();
         for (no, line) in text.lines().enumerate() {
             let code = line.split("//").next().unwrap_or("");
-            if code.contains("../shared") || code.contains("/shared/reference") {
+            // The patterns are built, not written, so that this file does not match itself.
+            let sibling = ["..", "shared"].join("/");
+            let reference = ["", "shared", "reference"].join("/");
+            if code.contains(&sibling) || code.contains(&reference) {
                 bad.push(format!("{}:{}: {}", rel(&f), no + 1, line.trim()));
             }
         }
