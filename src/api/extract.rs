@@ -36,6 +36,20 @@ pub fn content_type(headers: &HeaderMap) -> Option<String> {
         })
 }
 
+/// Whether a body that may come as JSON or CSV is CSV: `application/json` (or `+json`) is
+/// JSON, `text/csv`, `text/plain` and `application/csv` are CSV; anything else is 415 with
+/// `what` (the accepted shapes) in the sentence.
+pub fn is_csv_body(headers: &HeaderMap, what: &str) -> ApiResult<bool> {
+    match content_type(headers).as_deref() {
+        Some("application/json") => Ok(false),
+        Some(ct) if ct.starts_with("application/") && ct.ends_with("+json") => Ok(false),
+        Some("text/csv" | "text/plain" | "application/csv") => Ok(true),
+        _ => Err(ApiError::unsupported_media_type(format!(
+            "send Content-Type: {what}"
+        ))),
+    }
+}
+
 /// Reads the whole body, mapping the body-limit rejection to 413 and any other read error to 400.
 pub async fn read_body(req: Request) -> ApiResult<Bytes> {
     Bytes::from_request(req, &()).await.map_err(|rej| {

@@ -13,7 +13,7 @@ use serde_json::{Value, json};
 use super::AppState;
 use super::auth::{RequireAdmin, RequireWrite};
 use super::error::{ApiError, ApiResult};
-use super::extract::{ApiJson, content_type, read_body};
+use super::extract::{ApiJson, is_csv_body, read_body};
 use super::lookup::{require_measurement, require_surface};
 use super::upload::{ProbeData, deviations_along_normals, parse_csv_upload, parse_json_upload};
 use crate::api::id::{Id, PathIds};
@@ -48,17 +48,11 @@ async fn post_measurement(
     Query(query): Query<HashMap<String, String>>,
     req: Request,
 ) -> ApiResult<Response> {
-    let is_csv = match content_type(req.headers()).as_deref() {
-        Some("application/json") => false,
-        Some(ct) if ct.starts_with("application/") && ct.ends_with("+json") => false,
-        Some("text/csv" | "text/plain" | "application/csv") => true,
-        _ => {
-            return Err(ApiError::unsupported_media_type(
-                "send Content-Type: application/json ({\"points\"} or {\"deviations\"}) \
+    let is_csv = is_csv_body(
+        req.headers(),
+        "application/json ({\"points\"} or {\"deviations\"}) \
                  or text/csv (header x,y,z or deviation)",
-            ));
-        }
-    };
+    )?;
     let body = read_body(req).await?;
     let (data, body_id) = tokio::task::spawn_blocking(move || {
         if is_csv {

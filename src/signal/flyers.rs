@@ -104,12 +104,12 @@ fn median(v: &mut [f64]) -> f64 {
     }
 }
 
-/// Robust standard deviation 1.4826 · median(|r − median(r)|) of the residuals `r` at the
-/// indices where `keep` is true (mm). 1.4826 makes it σ for Gaussian noise.
+/// Robust standard deviation 1.4826 · median(|r − median(r)|) of the residuals `r` (mm).
+/// 1.4826 makes it σ for Gaussian noise.
 ///
 /// Reference: Hampel (1974); Rousseeuw & Croux (1993) eq. 1.
-pub fn robust_sigma(r: &[f64], keep: impl Fn(usize) -> bool) -> f64 {
-    let mut v: Vec<f64> = (0..r.len()).filter(|&k| keep(k)).map(|k| r[k]).collect();
+pub fn robust_sigma(r: &[f64]) -> f64 {
+    let mut v = r.to_vec();
     let m = median(&mut v);
     for x in &mut v {
         *x = (*x - m).abs();
@@ -152,7 +152,7 @@ pub fn neighbour_median(x: &[f64], grid: Option<(usize, usize)>) -> Vec<f64> {
 /// deviation of all the residuals; at most `max_fraction` of the points, the largest |r|
 /// first. Sorted ascending.
 pub fn over_the_line(r: &[f64], p: &FlyerParams) -> Vec<usize> {
-    let sigma = robust_sigma(r, |_| true);
+    let sigma = robust_sigma(r);
     let line = (p.k * sigma).max(p.min_mm);
     let mut hits: Vec<usize> = (0..r.len()).filter(|&k| r[k].abs() > line).collect();
     let cap = ((p.max_fraction * r.len() as f64).floor() as usize).max(1);

@@ -15,7 +15,7 @@ use super::request::{
 use crate::api::AppState;
 use crate::api::auth::RequireAdmin;
 use crate::api::error::{ApiError, ApiResult};
-use crate::api::extract::{ApiJson, check_points, content_type, decode_json, read_body};
+use crate::api::extract::{ApiJson, check_points, decode_json, is_csv_body, read_body};
 use crate::api::id::{Id, PathIds};
 use crate::api::lookup::require_machine;
 use crate::volumetric::{self, TableSpec, VolumetricData, VolumetricMap};
@@ -49,17 +49,11 @@ pub(super) async fn put_map(
     Query(query): Query<HashMap<String, String>>,
     req: Request,
 ) -> ApiResult<Response> {
-    let is_csv = match content_type(req.headers()).as_deref() {
-        Some("application/json") => false,
-        Some(ct) if ct.starts_with("application/") && ct.ends_with("+json") => false,
-        Some("text/csv" | "text/plain" | "application/csv") => true,
-        _ => {
-            return Err(ApiError::unsupported_media_type(
-                "send Content-Type: application/json ({\"nodes\", \"errors\"} or {\"lines\"}) \
+    let is_csv = is_csv_body(
+        req.headers(),
+        "application/json ({\"nodes\", \"errors\"} or {\"lines\"}) \
                  or text/csv (header x,y,z,dx,dy,dz; options in the query string)",
-            ));
-        }
-    };
+    )?;
     let body = read_body(req).await?;
     let (request, data) = if is_csv {
         let request = options_from_query(&query)?;
