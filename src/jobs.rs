@@ -8,14 +8,14 @@
 //! when the instance starts again ([`JobPool::start`]).
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use serde::Serialize;
 use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
 
-use crate::store::Store;
+use crate::store::{CancelOutcome, JobRecord, Store};
 
 /// Seconds a rejected caller is told to wait (`Retry-After`).
 pub const RETRY_AFTER_S: u64 = 2;
@@ -42,11 +42,28 @@ pub enum Error {
     Store(#[from] anyhow::Error),
 }
 
-/// Progress of a background job, a fraction in 0..1, shared with the running closure.
+/// Progress of a background job, a fraction in 0..1, shared with the running closure, and
+/// its cancellation: [`Progress::is_cancelled`] tells long work to stop, and
+/// [`Progress::commit`] is the gate a job passes just before it stores what it made.
 #[derive(Debug, Default)]
 pub struct Progress {
     bits: AtomicU64,
+    cancelled: AtomicBool,
+    gate: Option<Gate>,
 }
+
+/// Where [`Progress::commit`] claims the right to store: the job's row.
+#[derive(Debug)]
+struct Gate {
+    store: Store,
+    id: String,
+    runtime: tokio::runtime::Handle,
+}
+
+/// The job was cancelled: it must stop and store nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("the job was cancelled")]
+pub struct Cancelled;
 
 impl Progress {
     /// Sets the fraction done (clamped to 0..1; NaN is ignored).
@@ -62,23 +79,110 @@ impl Progress {
     pub fn get(&self) -> f64 {
         f64::from_bits(self.bits.load(Ordering::Relaxed))
     }
+
+    /// True once a client cancelled the job (`DELETE /v1/jobs/{id}` on any instance).
+    pub fn is_cancelled(&self) -> bool {
+        self.cancelled.load(Ordering::Relaxed)
+    }
+
+    fn cancel(&self) {
+        self.cancelled.store(true, Ordering::Relaxed);
+    }
+
+    /// Claims the right to store the job's product (a model): `Err(Cancelled)` when the job
+    /// was cancelled, and then nothing may be stored. The claim is one conditional update of
+    /// the job's row, so it and a cancellation from any instance exclude each other. Call it
+    /// from the job's worker thread (it blocks on the database).
+    pub fn commit(&self) -> Result<(), Cancelled> {
+        if self.is_cancelled() {
+            return Err(Cancelled);
+        }
+        let Some(g) = &self.gate else {
+            return Ok(());
+        };
+        match g.runtime.block_on(g.store.claim_job_commit(&g.id)) {
+            Ok(true) => Ok(()),
+            Ok(false) => {
+                self.cancel();
+                Err(Cancelled)
+            }
+            Err(e) => {
+                // Cannot tell: refuse to store rather than store behind a cancellation.
+                tracing::error!(job = %g.id, "cannot claim the job's commit: {e:#}");
+                Err(Cancelled)
+            }
+        }
+    }
 }
 
-/// A job's state as answered by `GET /v1/jobs/{id}`.
+/// What [`JobPool::cancel`] did.
+#[derive(Clone, Debug)]
+pub enum Cancel {
+    /// The job is now `cancelled` (its state as answered).
+    Cancelled(JobStatus),
+    /// The job had already ended, or is storing its result: its status.
+    Ended(JobStatus),
+    /// No such job.
+    Unknown,
+}
+
+/// How often a running job's own instance looks for a cancellation made on another one.
+const CANCEL_POLL: Duration = Duration::from_millis(250);
+
+/// Unix ms as RFC 3339 (UTC), for the job times.
+fn rfc3339(ms: i64) -> Option<String> {
+    let t = time::OffsetDateTime::from_unix_timestamp_nanos(i128::from(ms) * 1_000_000).ok()?;
+    t.format(&time::format_description::well_known::Rfc3339)
+        .ok()
+}
+
+/// A job's state as answered by `GET /v1/jobs/{id}` and listed by `GET /v1/jobs`.
 #[derive(Clone, Debug, Serialize)]
 pub struct JobStatus {
     /// Job id.
     pub id: String,
     /// What the job does.
     pub kind: String,
-    /// `queued`, `running`, `done` or `failed`.
+    /// `queued`, `running`, `done`, `failed` or `cancelled`.
     pub state: String,
     /// 0..1.
     pub progress: f64,
     /// The result JSON when done (null otherwise).
     pub result: Option<serde_json::Value>,
-    /// Why it failed (null otherwise).
+    /// Why it failed or that it was cancelled (null otherwise).
     pub error: Option<String>,
+    /// When it was submitted (RFC 3339, UTC).
+    pub created_at: Option<String>,
+    /// When a worker took it (RFC 3339; null while queued).
+    pub started_at: Option<String>,
+    /// When it ended (RFC 3339; null while unfinished).
+    pub finished_at: Option<String>,
+}
+
+impl JobStatus {
+    fn of(rec: JobRecord, live: Option<f64>) -> JobStatus {
+        let progress = match (rec.state.as_str(), live) {
+            ("done", _) => 1.0,
+            ("queued" | "running" | "storing", Some(p)) => p,
+            _ => rec.progress,
+        };
+        let state = if rec.state == "storing" {
+            "running".to_string()
+        } else {
+            rec.state
+        };
+        JobStatus {
+            id: rec.id,
+            kind: rec.kind,
+            state,
+            progress,
+            result: rec.result,
+            error: rec.error,
+            created_at: rfc3339(rec.created_at_ms),
+            started_at: rec.started_at_ms.and_then(rfc3339),
+            finished_at: rec.finished_at_ms.and_then(rfc3339),
+        }
+    }
 }
 
 struct Inner {
@@ -203,6 +307,11 @@ impl JobPool {
     /// Long work: records a job and returns its id at once (answer `202 {"job": id}`);
     /// `f` reports progress 0..1 and returns the result JSON or an error sentence.
     /// Poll with `GET /v1/jobs/{id}`. [`Error::Full`] (503 + Retry-After) when the pool is full.
+    ///
+    /// Cancellation (`DELETE /v1/jobs/{id}`, [`JobPool::cancel`]): a job cancelled while
+    /// queued never runs; a running one sees [`Progress::is_cancelled`] (set here, or within
+    /// [`CANCEL_POLL`] when the cancel came through another instance), and whatever it returns
+    /// is dropped. A job that stores something (a model) must pass [`Progress::commit`] first.
     pub async fn submit(
         &self,
         kind: &str,
@@ -211,7 +320,14 @@ impl JobPool {
         let admitted = self.admit()?;
         let id = uuid::Uuid::now_v7().to_string();
         self.inner.store.insert_job(&id, kind).await?;
-        let progress = Arc::new(Progress::default());
+        let progress = Arc::new(Progress {
+            gate: Some(Gate {
+                store: self.inner.store.clone(),
+                id: id.clone(),
+                runtime: tokio::runtime::Handle::current(),
+            }),
+            ..Progress::default()
+        });
         self.lock_live().insert(id.clone(), progress.clone());
         self.inner.queued.fetch_add(1, Ordering::Relaxed);
         let inner = self.inner.clone();
@@ -220,37 +336,37 @@ impl JobPool {
             let worker = inner.workers.clone().acquire_owned().await;
             inner.queued.fetch_sub(1, Ordering::Relaxed);
             let outcome = match worker {
-                Err(e) => Err(format!("worker pool closed: {e}")),
-                Ok(worker) => {
-                    if let Err(e) = inner
-                        .store
-                        .update_job(&job_id, "running", 0.0, None, None)
-                        .await
-                    {
-                        tracing::error!(job = %job_id, "cannot mark job running: {e:#}");
+                Err(e) => Some(Err(format!("worker pool closed: {e}"))),
+                Ok(worker) => match inner.store.start_job(&job_id).await {
+                    Ok(false) => None, // cancelled while queued: never runs
+                    started => {
+                        if let Err(e) = started {
+                            tracing::error!(job = %job_id, "cannot mark job running: {e:#}");
+                        }
+                        let p = progress.clone();
+                        let inner2 = inner.clone();
+                        let work = tokio::task::spawn_blocking(move || {
+                            let _permits = (admitted, worker);
+                            let _running = Count::up(&inner2.running);
+                            f(&p)
+                        });
+                        let done = watch_for_cancel(&inner.store, &job_id, &progress, work).await;
+                        Some(done.unwrap_or_else(|e| Err(format!("the job crashed: {e}"))))
                     }
-                    let p = progress.clone();
-                    let inner2 = inner.clone();
-                    tokio::task::spawn_blocking(move || {
-                        let _permits = (admitted, worker);
-                        let _running = Count::up(&inner2.running);
-                        f(&p)
-                    })
-                    .await
-                    .unwrap_or_else(|e| Err(format!("the job crashed: {e}")))
-                }
+                },
             };
             let saved = match &outcome {
-                Ok(v) => {
+                None => Ok(false),
+                Some(Ok(v)) => {
                     inner
                         .store
-                        .update_job(&job_id, "done", 1.0, Some(v), None)
+                        .finish_job(&job_id, "done", 1.0, Some(v), None)
                         .await
                 }
-                Err(msg) => {
+                Some(Err(msg)) => {
                     inner
                         .store
-                        .update_job(&job_id, "failed", progress.get(), None, Some(msg))
+                        .finish_job(&job_id, "failed", progress.get(), None, Some(msg))
                         .await
                 }
             };
@@ -267,6 +383,44 @@ impl JobPool {
         Ok(id)
     }
 
+    /// Cancels a job of any instance: queued or running jobs end `cancelled` at once (the
+    /// worker, if any, is told to stop and its result is dropped); ended jobs are left alone.
+    pub async fn cancel(&self, id: &str) -> anyhow::Result<Cancel> {
+        let outcome = self.inner.store.cancel_job(id).await?;
+        if outcome == CancelOutcome::Cancelled {
+            if let Some(p) = self.lock_live().get(id) {
+                p.cancel();
+            }
+        }
+        let Some(status) = self.status(id).await? else {
+            return Ok(Cancel::Unknown);
+        };
+        Ok(match outcome {
+            CancelOutcome::Cancelled => Cancel::Cancelled(status),
+            CancelOutcome::Ended(_) => Cancel::Ended(status),
+            CancelOutcome::Unknown => Cancel::Unknown,
+        })
+    }
+
+    /// Jobs newest first (`state` `queued`, `running`, `done`, `failed` or `cancelled`; `kind`
+    /// as submitted), at most `limit`, with live progress for this instance's running ones.
+    pub async fn list(
+        &self,
+        state: Option<&str>,
+        kind: Option<&str>,
+        limit: usize,
+    ) -> anyhow::Result<Vec<JobStatus>> {
+        let recs = self.inner.store.list_jobs(state, kind, limit).await?;
+        let live = self.lock_live();
+        Ok(recs
+            .into_iter()
+            .map(|r| {
+                let p = live.get(&r.id).map(|p| p.get());
+                JobStatus::of(r, p)
+            })
+            .collect())
+    }
+
     fn lock_live(&self) -> std::sync::MutexGuard<'_, HashMap<String, Arc<Progress>>> {
         self.inner.live.lock().unwrap_or_else(|p| p.into_inner())
     }
@@ -277,19 +431,7 @@ impl JobPool {
             return Ok(None);
         };
         let live = self.lock_live().get(id).map(|p| p.get());
-        let progress = match (rec.state.as_str(), live) {
-            ("done", _) => 1.0,
-            (_, Some(p)) => p,
-            _ => rec.progress,
-        };
-        Ok(Some(JobStatus {
-            id: rec.id,
-            kind: rec.kind,
-            state: rec.state,
-            progress,
-            result: rec.result,
-            error: rec.error,
-        }))
+        Ok(Some(JobStatus::of(rec, live)))
     }
 
     /// Work items waiting for a worker.
@@ -330,5 +472,30 @@ impl JobPool {
         }
         let cut = self.inner.store.fail_unfinished_jobs(INTERRUPTED).await?;
         Ok(cut)
+    }
+}
+
+/// Waits for a job's worker, looking every [`CANCEL_POLL`] whether its row was cancelled
+/// (through another instance) and telling the worker so.
+async fn watch_for_cancel<T>(
+    store: &Store,
+    id: &str,
+    progress: &Progress,
+    work: tokio::task::JoinHandle<T>,
+) -> Result<T, tokio::task::JoinError> {
+    tokio::pin!(work);
+    let mut tick = tokio::time::interval(CANCEL_POLL);
+    tick.tick().await;
+    loop {
+        tokio::select! {
+            done = &mut work => return done,
+            _ = tick.tick(), if !progress.is_cancelled() => {
+                if let Ok(Some(state)) = store.job_state(id).await {
+                    if state == "cancelled" {
+                        progress.cancel();
+                    }
+                }
+            }
+        }
     }
 }

@@ -5,11 +5,10 @@
 
 use axum::Router;
 use axum::extract::{Request, State};
-use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
 use serde::Deserialize;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use super::AppState;
 use super::auth::RequireWrite;
@@ -80,9 +79,7 @@ async fn run(
                 serde_json::to_value(&d).map_err(|e| e.to_string())
             })
             .await?;
-        return Ok(Err(
-            (StatusCode::ACCEPTED, ApiJson(json!({ "job": id }))).into_response()
-        ));
+        return Ok(Err(super::jobs::accepted(&id)));
     }
     let d = state
         .jobs

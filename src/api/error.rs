@@ -375,6 +375,7 @@ impl From<step_error::Error> for ApiError {
             E::Nn(e) => e.into(),
             E::TooFewToSplit => ApiError::unprocessable(e.to_string()),
             E::Metadata(_) => ApiError::internal(e),
+            E::Cancelled => ApiError::conflict(e.to_string()),
         }
     }
 }

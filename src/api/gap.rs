@@ -5,11 +5,10 @@
 
 use axum::Router;
 use axum::extract::State;
-use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
 use serde::Deserialize;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use super::AppState;
 use super::error::{ApiError, ApiResult};
@@ -68,7 +67,7 @@ async fn gap_diagnosis(
                             .map_err(|e| ApiError::from(e).detail().to_string())
                     })
                     .await?;
-                return Ok((StatusCode::ACCEPTED, ApiJson(json!({"job": id}))).into_response());
+                return Ok(super::jobs::accepted(&id));
             }
             let answer = state
                 .jobs

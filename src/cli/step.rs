@@ -191,8 +191,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if let Some(e) = epochs {
                 job.cfg.epochs = e;
             }
-            let (reg, report) =
-                job.run(&f.segments, &|p| eprint!("\rtraining {:>3.0} %", p * 100.0))?;
+            let (reg, report) = job.run(&f.segments, &|p| {
+                eprint!("\rtraining {:>3.0} %", p * 100.0);
+                true
+            })?;
             eprintln!();
             std::fs::write(&output, reg.to_bytes())
                 .with_context(|| format!("cannot write {}", output.display()))?;

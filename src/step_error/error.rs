@@ -20,6 +20,9 @@ pub enum Error {
     /// bug): nothing the caller can fix.
     #[error("the step-error model metadata is unreadable: {0}")]
     Metadata(String),
+    /// The caller's progress callback asked to stop (the job was cancelled).
+    #[error("the training was cancelled")]
+    Cancelled,
 }
 
 /// Result type of the `step_error` core.

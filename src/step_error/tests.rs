@@ -72,7 +72,7 @@ fn a_trained_model_carries_its_features_and_radius() {
     let (r, segs) = segments(6, 12);
     let mut job = TrainJob::new(r);
     job.cfg.epochs = 3;
-    let (reg, report) = job.run(&segs, &|_| {}).unwrap();
+    let (reg, report) = job.run(&segs, &|_| true).unwrap();
     assert_eq!(report["kind"], MODEL_KIND);
     let (features, radius) = model_features(&reg).unwrap();
     assert_eq!(radius, r);
@@ -83,6 +83,6 @@ fn a_trained_model_carries_its_features_and_radius() {
 #[test]
 fn too_few_segments_to_split_is_its_own_error() {
     let (r, segs) = segments(2, 3);
-    let err = TrainJob::new(r).run(&segs[..2], &|_| {}).unwrap_err();
+    let err = TrainJob::new(r).run(&segs[..2], &|_| true).unwrap_err();
     assert!(matches!(err, Error::TooFewToSplit | Error::Nn(_)), "{err}");
 }

@@ -62,11 +62,12 @@ impl TrainJob {
     }
 
     /// Labels `segs` exactly, trains (or fine-tunes the base), and returns the model (metadata
-    /// filled) and the report JSON; `progress` receives 0..1.
+    /// filled) and the report JSON; `progress` receives 0..1 and answers whether to go on
+    /// (false stops the training after the current epoch with [`Error::Cancelled`]).
     pub fn run(
         self,
         segs: &[StepErrorSegment],
-        progress: &dyn Fn(f64),
+        progress: &dyn Fn(f64) -> bool,
     ) -> Result<(Regressor, Value)> {
         let f = match &self.base {
             Some(b) => serde_json::from_str::<ModelMeta>(&b.metadata)
@@ -87,7 +88,9 @@ impl TrainJob {
                     })
             })
             .collect::<std::result::Result<_, _>>()?;
-        progress(0.05);
+        if !progress(0.05) {
+            return Err(Error::Cancelled);
+        }
         let (x, convex) = f.matrix(self.r, segs.iter().map(|s| (s.cl, &s.cc[..])))?;
         let t: Vec<f64> = exact.iter().flat_map(|e| f.targets(e)).collect();
         let y_um: Vec<f64> = exact.iter().map(|e| e.error_mm * 1000.0).collect();
@@ -106,10 +109,7 @@ impl TrainJob {
         let (xf, tf) = (gather_rows(&x, w, &fit), gather_rows(&t, no, &fit));
         let (xv, tv) = (gather_rows(&x, w, &val), gather_rows(&t, no, &val));
         let epochs = self.cfg.epochs as f64;
-        let mut on_epoch = |s: &nn::EpochStats| {
-            progress(0.05 + 0.9 * s.epoch as f64 / epochs);
-            true
-        };
+        let mut on_epoch = |s: &nn::EpochStats| progress(0.05 + 0.9 * s.epoch as f64 / epochs);
         let eval = |reg: &Regressor| -> Result<Option<(f64, f64)>> {
             if test_idx.is_empty() {
                 return Ok(None);
@@ -141,6 +141,9 @@ impl TrainJob {
                 (reg, rep, None)
             }
         };
+        if report.cancelled {
+            return Err(Error::Cancelled);
+        }
         let test = eval(&reg)?;
         let result = json!({
             "kind": MODEL_KIND,
@@ -169,7 +172,9 @@ impl TrainJob {
         };
         let mut reg = reg;
         reg.metadata = serde_json::to_string(&meta).map_err(|e| Error::Metadata(e.to_string()))?;
-        progress(0.97);
+        if !progress(0.97) {
+            return Err(Error::Cancelled);
+        }
         Ok((reg, result))
     }
 }

@@ -17,7 +17,7 @@ mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
 pub use database::{Backend, Store};
-pub use jobs::JobRecord;
+pub use jobs::{CancelOutcome, JobRecord};
 pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};
 pub use models::{MODEL_FORMAT_VERSION, ModelStore, is_valid_id};

@@ -11,6 +11,7 @@ mod helpers;
 mod contour;
 mod decomposition;
 mod gap;
+mod jobs_cancel;
 mod jobs_models;
 mod resources;
 mod service;

@@ -2,6 +2,7 @@
 
 use super::*;
 use crate::gap::Effect;
+use axum::http::StatusCode;
 
 #[test]
 fn rows_are_checked_and_transposed() {

@@ -246,8 +246,13 @@ pub(super) async fn train(
                 base_name,
             };
             let (reg, result) = job
-                .run(&segments, &|p| progress.set(p))
+                .run(&segments, &|p| {
+                    progress.set(p);
+                    !progress.is_cancelled()
+                })
                 .map_err(|e| ApiError::from(e).detail().to_string())?;
+            // Nothing is stored once a client cancelled the job (DELETE /v1/jobs/{id}).
+            progress.commit().map_err(|e| e.to_string())?;
             handle
                 .block_on(store.models().save(
                     &machine,
@@ -259,7 +264,7 @@ pub(super) async fn train(
             Ok(result)
         })
         .await?;
-    Ok((StatusCode::ACCEPTED, ApiJson(json!({"job": id}))))
+    Ok(super::super::jobs::accepted(&id))
 }
 
 pub(super) async fn model_info(
