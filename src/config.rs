@@ -48,6 +48,11 @@ pub struct Config {
     #[arg(long, default_value_t = DEFAULT_MAX_BODY_BYTES, env = "TRUECUT_MAX_BODY_BYTES")]
     pub max_body_bytes: usize,
 
+    /// Seconds a request body may take to arrive after its headers (or stall) before the
+    /// request is answered 408 and its connection freed.
+    #[arg(long, default_value_t = 30.0, env = "TRUECUT_BODY_TIMEOUT_S")]
+    pub body_timeout_s: f64,
+
     /// Seconds that in-flight background jobs get to finish at shutdown before they are
     /// recorded as failed.
     #[arg(long, default_value_t = 30, env = "TRUECUT_SHUTDOWN_GRACE_S")]
@@ -66,6 +71,7 @@ impl Config {
             workers: None,
             queue: 32,
             max_body_bytes: DEFAULT_MAX_BODY_BYTES,
+            body_timeout_s: 30.0,
             shutdown_grace_s: 30,
         }
     }

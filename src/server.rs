@@ -52,6 +52,15 @@ pub async fn start(config: &Config) -> Result<Server> {
         tokens: Arc::new(tokens),
         metrics: Arc::new(api::metrics::Metrics::default()),
         max_body_bytes: config.max_body_bytes,
+        body_timeout: std::time::Duration::try_from_secs_f64(config.body_timeout_s)
+            .ok()
+            .filter(|d| !d.is_zero())
+            .ok_or_else(|| {
+                anyhow::anyhow!(
+                    "--body-timeout-s must be a positive number of seconds, got {}",
+                    config.body_timeout_s
+                )
+            })?,
     };
     let app = api::router(state.clone());
     let listener = tokio::net::TcpListener::bind(config.addr)

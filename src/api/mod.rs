@@ -53,6 +53,8 @@ pub struct AppState {
     pub metrics: Arc<metrics::Metrics>,
     /// Largest accepted request body, bytes.
     pub max_body_bytes: usize,
+    /// How long a request body may take to arrive after its headers (then 408).
+    pub body_timeout: std::time::Duration,
 }
 
 /// The whole HTTP API: every resource's `routes()` plus the cross-cutting layers.
@@ -86,6 +88,10 @@ pub fn router(state: AppState) -> Router {
         .layer(axum::middleware::from_fn_with_state(
             max_body,
             middleware::content_length_limit,
+        ))
+        .layer(axum::middleware::from_fn_with_state(
+            state.body_timeout,
+            middleware::body_deadline,
         ))
         .layer(DefaultBodyLimit::max(max_body))
         .layer(CompressionLayer::new())

@@ -15,6 +15,7 @@ mod jobs_cancel;
 mod jobs_models;
 mod resources;
 mod service;
+mod stalled;
 mod step_error;
 mod step_network;
 mod volumetric;
