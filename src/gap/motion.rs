@@ -307,8 +307,14 @@ pub fn diagnose_motion_structured(
     let gap_before = gap_stats(&main.measured, &base);
     let mut spans = rank_spans(&main.commanded, &residual, axes, opts.max_spans);
     if let Some(lines) = lines {
+        // an event at sample j is the motion from j to j + 1: the line of sample j + 1 runs it
         for s in spans.iter_mut() {
-            s.line = lines.get(s.start).copied();
+            let at = if s.start == 0 {
+                0
+            } else {
+                (s.start + 1).min(n - 1)
+            };
+            s.line = lines.get(at).copied();
         }
     }
     let noise = noise_sigma(&residual);
