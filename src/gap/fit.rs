@@ -104,10 +104,8 @@ pub fn at_bound(
                 }
             }
         }
-        Fitted::ThermalDrift { tau, .. } => {
-            if near(*tau, THERMAL_TAU_MIN_FRACTION * duration_s) {
-                out.push("tau_s".to_string());
-            }
+        Fitted::ThermalDrift { tau, .. } if near(*tau, THERMAL_TAU_MIN_FRACTION * duration_s) => {
+            out.push("tau_s".to_string());
         }
         _ => {}
     }
