@@ -113,7 +113,7 @@ pub struct MotionValidation {
     pub rms_after: f64,
     /// The prediction after each step (fitted on the main block only).
     pub predicted_steps: Vec<Vec<Vec<f64>>>,
-    /// RMS of |measured − predicted_steps[m]|, mm.
+    /// RMS of `|measured − predicted_steps[m]|` per step, mm.
     pub rms_steps: Vec<f64>,
 }
 
