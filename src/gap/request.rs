@@ -291,7 +291,8 @@ pub fn motion_inputs_with(
         return Err(Error::Request(format!("folds must be 2..=10, got {folds}")));
     }
     // small blocks: one thread per request (the pool runs requests side by side); large
-    // blocks: the 7 effect fits on 2 threads, so one 100,000-sample request stays near 5 s
+    // blocks: the effect fits on 2 threads (benches/gap.rs: about 16 s for 100,000 samples x 3
+    // axes with steps on this 2-core machine)
     let threads = if commanded[0].len() >= 20_000 { 2 } else { 1 };
     let opts = MotionOptions {
         folds,
