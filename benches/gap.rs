@@ -1,4 +1,4 @@
-//! Gap diagnosis speed: one diagnosis of ≥ 10,000 samples (2 axes, cascade servo, friction
+//! Gap diagnosis speed (with steps, where and unexplained): one diagnosis of ≥ 10,000 samples (2 axes, cascade servo, friction
 //! truth), multi-threaded vs the single-threaded run of the same code, and the exact
 //! discretization vs a naive RK4 re-simulation (16 sub-steps per period) of the same block.
 use std::time::Instant;
@@ -142,5 +142,9 @@ fn main() {
         exact * 1e3,
         rk4 * 1e3,
         rk4 / exact
+    );
+    println!(
+        "diagnosis (steps, where, unexplained) of the 10,000-sample block = x{:.0} one plain simulation of it",
+        t2 / exact
     );
 }

@@ -11,14 +11,19 @@ use serde::Deserialize;
 use serde_json::Value;
 
 use super::AppState;
+use super::contour::ContourRequest;
 use super::error::{ApiError, ApiResult};
 use super::extract::ApiJson;
 use super::lookup::{require_machine, require_measurement, require_surface};
 use crate::api::id::{Id, PathIds};
 use crate::gap::{
-    self, GapRequest, PartBlock, PartGrid, diagnose_motion_request, motion_inputs, part_answer,
+    self, GapRequest, PartBlock, PartGrid, ProgramCommand, diagnose_motion_program,
+    diagnose_motion_request, motion_inputs, part_answer,
 };
-use crate::motion::{servo_axes, stored_definition};
+use crate::motion::{
+    Machine, ServoAxes, check_period, interpolate, machine_for_simulation, parse_with, servo_axes,
+    stored_definition,
+};
 
 /// Routes of this resource.
 pub fn routes() -> Router<AppState> {
@@ -48,7 +53,12 @@ async fn gap_diagnosis(
     let def = require_machine(&state, &machine).await?;
     match req.domain.as_str() {
         "motion" => {
-            let m = servo_axes(&machine, &stored_definition(&machine, &def)?)?;
+            let mdef = stored_definition(&machine, &def)?;
+            let m = servo_axes(&machine, &mdef)?;
+            if req.gcode.is_some() {
+                let sim = machine_for_simulation(&machine, &mdef)?;
+                return motion_from_program(&state, sim, m, req).await;
+            }
             let n = req.commanded.as_ref().map_or(0, Vec::len);
             let nv = req
                 .validation
@@ -81,6 +91,89 @@ async fn gap_diagnosis(
         ))),
     }
 }
+
+/// The motion diagnosis of a program (CONTRACT v1.1): the program is read with the contour
+/// route's lenient reader and options, interpolated on this machine every `period_s`, fitted
+/// to the measured rows' length (held at its end or cut, with a warning), and diagnosed with
+/// its lines named in `where`.
+async fn motion_from_program(
+    state: &AppState,
+    sim: Machine,
+    m: ServoAxes,
+    req: GapRequest,
+) -> ApiResult<Response> {
+    let gcode = req.gcode.clone().unwrap_or_default();
+    if gcode.trim().is_empty() {
+        return Err(ApiError::bad_request(
+            "gcode is empty: send the program text, e.g. \"G1 X10 F600\"",
+        ));
+    }
+    let period_s = req.period_s.ok_or_else(|| {
+        ApiError::bad_request("period_s is missing: give the sample period in seconds, e.g. 0.001")
+    })?;
+    check_period(period_s)?;
+    let options = ContourRequest {
+        gcode: String::new(),
+        period_s: None,
+        strict: req.strict,
+        work_offsets: req.work_offsets.clone(),
+        tool_lengths: req.tool_lengths.clone(),
+        home: req.home,
+    }
+    .read_options()?;
+    let n = req.measured.as_ref().map_or(0, Vec::len);
+    if n > MAX_SYNC_SAMPLES {
+        return Err(ApiError::bad_request(format!(
+            "measured has {n} rows: a diagnosis from gcode takes at most {MAX_SYNC_SAMPLES} (send commanded rows for longer blocks)"
+        )));
+    }
+    let answer = state
+        .jobs
+        .run(move || -> ApiResult<Value> {
+            let (mut program, warnings) = parse_with(&gcode, &options)?;
+            let mut warnings: Vec<String> = warnings.iter().map(ToString::to_string).collect();
+            if !options.strict {
+                let has = |name: &str| sim.axes.iter().any(|a| a.name == name);
+                warnings.extend(
+                    program
+                        .forget_still_rotary_axes(has("A"), has("C"))
+                        .iter()
+                        .map(ToString::to_string),
+                );
+            }
+            let traj = interpolate(&program, &sim, period_s, MAX_PROGRAM_PERIODS)?;
+            let have = traj.line.len();
+            let mut cmd = ProgramCommand {
+                commanded: traj.axes,
+                lines: traj.line,
+                warnings,
+            };
+            if n > 0 && have != n {
+                for c in cmd.commanded.iter_mut() {
+                    let last = c.last().copied().unwrap_or(0.0);
+                    c.resize(n, last);
+                }
+                let last = cmd.lines.last().copied().unwrap_or(1);
+                cmd.lines.resize(n, last);
+                cmd.warnings.push(if have < n {
+                    format!(
+                        "the program's interpolation has {have} samples and measured {n} rows: the command holds the program's end position for the last {} rows",
+                        n - have
+                    )
+                } else {
+                    format!(
+                        "the program's interpolation has {have} samples and measured {n} rows: the diagnosis covers the program's first {n} samples"
+                    )
+                });
+            }
+            Ok(diagnose_motion_program(&m, &req, Some(&cmd))?)
+        })
+        .await??;
+    Ok(ApiJson(answer).into_response())
+}
+
+/// Most interpolation periods read from a program for a motion diagnosis.
+pub const MAX_PROGRAM_PERIODS: usize = 1_000_000;
 
 fn check_opt(field: &str, v: &Option<Vec<f64>>, n: usize) -> ApiResult<()> {
     if let Some(xs) = v {
@@ -146,6 +239,7 @@ async fn diagnose_part_route(state: &AppState, machine: &Id, req: GapRequest) ->
         ("period_s", req.period_s.is_some()),
         ("commanded", req.commanded.is_some()),
         ("measured", req.measured.is_some()),
+        ("gcode", req.gcode.is_some()),
     ] {
         if present {
             return Err(ApiError::bad_request(format!(

@@ -32,13 +32,30 @@ pub fn motion_answer(axes: &[String], d: &MotionDiagnosis) -> Value {
         "axes": axes,
         "gap_before": d.gap_before,
         "where": d.spans,
-        "effects": d.effects.iter().map(|e| json!({
-            "effect": e.fitted.effect().name(),
-            "params": params_json(&e.params),
-            "score": e.score,
-        })).collect::<Vec<_>>(),
+        "effects": d.effects.iter().map(|e| {
+            let mut o = json!({
+                "effect": e.fitted.effect().name(),
+                "params": params_json(&e.params),
+                "score": e.score,
+            });
+            if !e.at_bound.is_empty() {
+                o["at_bound"] = json!(e.at_bound);
+            }
+            o
+        }).collect::<Vec<_>>(),
         "verdict": d.verdict.name(),
         "gap_after": d.gap_after,
+        "steps": d.steps.iter().map(|s| json!({
+            "effect": s.fitted.effect().name(),
+            "params": params_json(&s.params),
+            "gap_after": s.gap_after,
+            "score": s.score,
+        })).collect::<Vec<_>>(),
+        "unexplained": {
+            "rms": d.unexplained.rms,
+            "share": d.unexplained.share,
+            "periodic": d.unexplained.periodic,
+        },
         "noise_mm": d.noise_mm,
     });
     if let Some(v) = &d.validation {
@@ -47,6 +64,8 @@ pub fn motion_answer(axes: &[String], d: &MotionDiagnosis) -> Value {
             "predicted_after": columns_to_rows(&v.predicted_after),
             "rms_before": v.rms_before,
             "rms_after": v.rms_after,
+            "predicted_steps": v.predicted_steps.iter().map(|p| columns_to_rows(p)).collect::<Vec<_>>(),
+            "rms_steps": v.rms_steps,
         });
     }
     out

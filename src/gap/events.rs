@@ -1,5 +1,6 @@
-//! Where the gap lies: the timeline cut into spans at motion events (axis reversals, stops,
-//! starts, corners, tight arcs), ranked by their share of the squared gap.
+//! Where the gap lies: each axis' timeline cut into spans at its motion events (reversals,
+//! starts, stops), ranked by the gap that arises in each span on that axis; plus the path
+//! events (corners, tight arcs) of the whole command.
 
 use serde::Serialize;
 
@@ -14,6 +15,12 @@ pub struct Span {
     pub share: f64,
     /// The event the span begins with, e.g. "X reversal".
     pub label: String,
+    /// The axis that carries the span's gap (its events cut the span).
+    pub axis: String,
+    /// The program line executing at the span's first sample, when the command came from a
+    /// program.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub line: Option<u32>,
 }
 
 /// Radius below which an arc counts as tight, mm.
@@ -100,9 +107,69 @@ pub fn motion_events(cmd: &[Vec<f64>], axes: &[String]) -> Vec<(usize, String)> 
     events
 }
 
-/// Cuts `[0, n)` at the events (merging events closer than `max(3, n/1000)` samples into one
-/// label), scores each span by its share of `Σ_i |r_i|²` (`residual` per axis, mm) and returns
-/// the `max_spans` worst, worst first.
+/// Events of one axis `k` of a command (per axis columns, mm), as `(sample, label)` sorted
+/// by sample: its reversals (`"X reversal"`, where the velocity took its new sign), starts
+/// from rest (`"X start"`) and stops (`"X stop"`). The axis counts as moving while its FOH
+/// speed `|c[i+1] − c[i]|/T` is at least 1 % of the peak path speed. Bad cases: an axis
+/// creeping below 1 % of the peak speed has no events.
+pub fn axis_events(cmd: &[Vec<f64>], k: usize, name: &str) -> Vec<(usize, String)> {
+    let n = cmd.first().map_or(0, Vec::len);
+    let mut events = Vec::new();
+    if n < 3 || k >= cmd.len() {
+        return events;
+    }
+    let vmax = (0..n - 1)
+        .map(|i| {
+            cmd.iter()
+                .map(|c| (c[i + 1] - c[i]).powi(2))
+                .sum::<f64>()
+                .sqrt()
+        })
+        .fold(0.0, f64::max);
+    if vmax == 0.0 {
+        return events;
+    }
+    let thr = 0.01 * vmax;
+    let c = &cmd[k];
+    let (mut last_sign, mut last_strong, mut moving) = (0.0f64, 0usize, false);
+    for i in 0..n - 1 {
+        let v = c[i + 1] - c[i];
+        if v.abs() >= thr {
+            let s = v.signum();
+            if last_sign != 0.0 && s != last_sign {
+                let mut j = i;
+                while j > last_strong + 1 && (c[j] - c[j - 1]) * s > 0.0 {
+                    j -= 1;
+                }
+                events.push((j, format!("{name} reversal")));
+            } else if !moving && i > 0 {
+                let mut j = i;
+                while j > last_strong + 1 && (c[j] - c[j - 1]) * s > 0.0 {
+                    j -= 1;
+                }
+                events.push((j, format!("{name} start")));
+            }
+            last_sign = s;
+            last_strong = i;
+            moving = true;
+        } else if moving {
+            events.push((i + 1, format!("{name} stop")));
+            moving = false;
+        }
+    }
+    events.sort_by_key(|e| e.0);
+    events
+}
+
+/// Where the gap arises, per axis (CONTRACT v1.1 "where"): each axis' timeline is cut at its
+/// own events ([`axis_events`], events closer than `max(3, n/1000)` samples merged), and a span
+/// is scored by the gap that *arises* in it on that axis,
+/// `Σ_{i∈span} (r_k[i] − r̄_k)²` with `r̄_k` the mean residual of the `max(5, n/1000)` samples
+/// before the span (0 for the first span): a lag that sets in at an X reversal and persists
+/// until the next counts in the span that begins at that reversal, and nowhere after, while a
+/// spike counts where it occurs. `share` is the span's part of the sum of all spans' scores
+/// over all axes; the `max_spans` largest are returned, largest first, each naming its axis.
+/// Bad cases: a gap that grows slowly (drift) is spread over many spans of small share.
 pub fn rank_spans(
     cmd: &[Vec<f64>],
     residual: &[Vec<f64>],
@@ -114,35 +181,50 @@ pub fn rank_spans(
         return Vec::new();
     }
     let min_gap = (n / 1000).max(3);
-    let mut cuts: Vec<(usize, Vec<String>)> = vec![(0, vec!["program start".to_string()])];
-    for (i, label) in motion_events(cmd, axes) {
-        let last = cuts.last_mut().expect("non-empty");
-        if i < last.0 + min_gap {
-            if !last.1.contains(&label) {
-                last.1.push(label);
+    let lookback = (n / 1000).max(5);
+    let mut spans = Vec::new();
+    for (k, r) in residual.iter().enumerate() {
+        let name = axes.get(k).map_or("axis", String::as_str);
+        let mut cuts: Vec<(usize, Vec<String>)> = vec![(0, vec!["program start".to_string()])];
+        for (i, label) in axis_events(cmd, k, name) {
+            let last = cuts.last_mut().expect("non-empty");
+            if i < last.0 + min_gap {
+                if !last.1.contains(&label) {
+                    last.1.push(label);
+                }
+            } else {
+                cuts.push((i, vec![label]));
             }
-        } else {
-            cuts.push((i, vec![label]));
         }
-    }
-    let sq: Vec<f64> = (0..n)
-        .map(|i| residual.iter().map(|c| c[i] * c[i]).sum())
-        .collect();
-    let total: f64 = sq.iter().sum();
-    let mut spans: Vec<Span> = cuts
-        .iter()
-        .enumerate()
-        .map(|(j, (start, labels))| {
+        for (j, (start, labels)) in cuts.iter().enumerate() {
             let end = cuts.get(j + 1).map_or(n - 1, |c| c.0 - 1);
-            let part: f64 = sq[*start..=end].iter().sum();
-            Span {
+            let carry = if *start == 0 {
+                0.0
+            } else {
+                let from = start.saturating_sub(lookback);
+                r[from..*start].iter().sum::<f64>() / (start - from) as f64
+            };
+            let score: f64 = r[*start..=end].iter().map(|v| (v - carry).powi(2)).sum();
+            // a reversal names the span even when the axis also starts there
+            let mut labels = labels.clone();
+            labels.sort_by_key(|l| !l.ends_with("reversal"));
+            if labels.iter().any(|l| l.ends_with("reversal")) {
+                labels.retain(|l| !l.ends_with("start"));
+            }
+            spans.push(Span {
                 start: *start,
                 end,
-                share: if total > 0.0 { part / total } else { 0.0 },
+                share: score,
                 label: labels.join(", "),
-            }
-        })
-        .collect();
+                axis: name.to_string(),
+                line: None,
+            });
+        }
+    }
+    let total: f64 = spans.iter().map(|s| s.share).sum();
+    for s in spans.iter_mut() {
+        s.share = if total > 0.0 { s.share / total } else { 0.0 };
+    }
     spans.sort_by(|a, b| b.share.total_cmp(&a.share).then(a.start.cmp(&b.start)));
     spans.truncate(max_spans);
     spans

@@ -23,8 +23,93 @@ pub struct FitData<'a> {
     /// Stored simulation per axis, mm.
     pub base: &'a [Vec<f64>],
     /// Re-simulations already run, keyed by (effect tag, axis, parameter bits): the grid stage
-    /// of the 1-D searches is the same for every cross-validation fold.
-    pub cache: SimCache,
+    /// of the 1-D searches is the same for every cross-validation fold and every step (the
+    /// simulations depend on the command only, not on `meas`).
+    pub cache: &'a SimCache,
+}
+
+/// Upper bound of the friction search for one axis: `0.1·kp_v·kv` mm/s² (cascade) or
+/// `0.1·kv` mm/s (first-order loop) — a static error of 0.1 mm, far above any real machine's.
+pub fn friction_max(p: &AxisPlant) -> f64 {
+    match p.servo.kp_v {
+        Some(kp) => kp * p.servo.kv * 0.1,
+        None => p.servo.kv * 0.1,
+    }
+}
+
+/// Search range of the position-loop gain, as ratios to the stored gain.
+pub const KV_RATIO_RANGE: (f64, f64) = (0.5, 2.0);
+/// Upper bound of the backlash search, mm.
+pub const BACKLASH_MAX_MM: f64 = 0.25;
+/// Search range of the cyclic-error pitch, mm (the top is also cut at 2/3 of the travel).
+pub const CYCLIC_PITCH_RANGE_MM: (f64, f64) = (0.5, 64.0);
+/// Shortest thermal time constant searched, as a fraction of the block's duration.
+pub const THERMAL_TAU_MIN_FRACTION: f64 = 0.05;
+
+fn near(a: f64, b: f64) -> bool {
+    (a - b).abs() <= 1e-6 * b.abs().max(1e-12)
+}
+
+/// Names (as in [`Fitted::params`]) of the parameters that ended at a bound of their search:
+/// friction at [`friction_max`], gain ratio at either end of [`KV_RATIO_RANGE`], backlash at
+/// [`BACKLASH_MAX_MM`], pitch at either end of [`CYCLIC_PITCH_RANGE_MM`], τ at
+/// [`THERMAL_TAU_MIN_FRACTION`] of `duration_s`. Such a value is where the search stopped,
+/// not a measurement of the machine.
+pub fn at_bound(
+    fitted: &Fitted,
+    axes: &[String],
+    plants: &[AxisPlant],
+    duration_s: f64,
+) -> Vec<String> {
+    let ax = |k: usize| {
+        axes.get(k)
+            .map_or_else(|| format!("axis{k}"), |a| a.to_lowercase())
+    };
+    let mut out = Vec::new();
+    match fitted {
+        Fitted::CoulombFriction { f } => {
+            for (k, &f) in f.iter().enumerate() {
+                if near(f, friction_max(&plants[k])) {
+                    let unit = if plants[k].has_velocity_loop() {
+                        "accel_mm_s2"
+                    } else {
+                        "velocity_deficit_mm_s"
+                    };
+                    out.push(format!("{}_{unit}", ax(k)));
+                }
+            }
+        }
+        Fitted::ServoGainMismatch { kv } => {
+            for (k, &kv) in kv.iter().enumerate() {
+                let r = kv / plants[k].servo.kv;
+                if near(r, KV_RATIO_RANGE.0) || near(r, KV_RATIO_RANGE.1) {
+                    out.push(format!("{}_kv_per_s", ax(k)));
+                    out.push(format!("{}_kv_ratio", ax(k)));
+                }
+            }
+        }
+        Fitted::Backlash { b, .. } => {
+            for (k, &b) in b.iter().enumerate() {
+                if near(b, BACKLASH_MAX_MM) {
+                    out.push(format!("{}_mm", ax(k)));
+                }
+            }
+        }
+        Fitted::CyclicError { pitch, sin, cos } => {
+            for (k, &p) in pitch.iter().enumerate() {
+                let active = sin[k] != 0.0 || cos[k] != 0.0;
+                if active && (near(p, CYCLIC_PITCH_RANGE_MM.0) || near(p, CYCLIC_PITCH_RANGE_MM.1))
+                {
+                    out.push(format!("{}_pitch_mm", ax(k)));
+                }
+            }
+        }
+        Fitted::ThermalDrift { tau, .. } if near(*tau, THERMAL_TAU_MIN_FRACTION * duration_s) => {
+            out.push("tau_s".to_string());
+        }
+        _ => {}
+    }
+    out
 }
 
 /// Memo of re-simulations shared by the folds of one diagnosis.
@@ -79,8 +164,9 @@ fn quadratic_grid(max: f64, n: usize) -> Vec<f64> {
 }
 
 /// Fits `effect` on the samples with weight 1 in `w` (full re-simulation, loss on the subset).
-/// `hint` (the fit on all samples) settles discrete nuisance choices the subset cannot see.
-pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> Fitted {
+/// Only the weighted samples decide: a choice they cannot make (the backlash start when they
+/// do not see the gap close first) falls to a fixed default, never to a fit that saw more.
+pub fn fit(effect: Effect, data: &FitData, w: &[f64]) -> Fitted {
     let axes = data.plants.len();
     match effect {
         Effect::None => Fitted::None,
@@ -88,11 +174,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
             let f = (0..axes)
                 .map(|k| {
                     let p = &data.plants[k];
-                    let max = match p.servo.kp_v {
-                        Some(kp) => kp * p.servo.kv * 0.1,
-                        None => p.servo.kv * 0.1,
-                    };
-                    let grid = quadratic_grid(max, 14);
+                    let grid = quadratic_grid(friction_max(p), 14);
                     let loss = |f: f64| {
                         if grid.contains(&f) {
                             let sim = data
@@ -109,21 +191,17 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
             Fitted::CoulombFriction { f }
         }
         Effect::Backlash => {
-            let prior = match hint {
-                Some(Fitted::Backlash { start, .. }) => start.clone(),
-                _ => vec![0.0; axes],
-            };
             let mut bs = Vec::new();
             let mut starts = Vec::new();
             for k in 0..axes {
                 let dir = first_direction(&data.base[k]);
                 // the start in the gap only shows before the gap first closes; when the
-                // training samples cannot tell (exact ties), the prior (full-data fit) wins
+                // training samples cannot tell (exact ties), "centred" (0) stays
                 let best_start = |b: f64| -> (f64, f64) {
                     let loss =
                         |st: f64| play_sse(&data.base[k], &data.meas[k], b, st * 0.5 * b * dir, w);
-                    let mut best = (prior[k], loss(prior[k]));
-                    for st in [-1.0, 0.0, 1.0] {
+                    let mut best = (0.0, loss(0.0));
+                    for st in [-1.0, 1.0] {
                         let l = loss(st);
                         if l < best.1 * (1.0 - 1e-12) {
                             best = (st, l);
@@ -131,8 +209,12 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                     }
                     best
                 };
-                let (b, _) =
-                    minimize_on_grid(|b| best_start(b).1, &quadratic_grid(0.25, 16), 16, 1e-2);
+                let (b, _) = minimize_on_grid(
+                    |b| best_start(b).1,
+                    &quadratic_grid(BACKLASH_MAX_MM, 16),
+                    16,
+                    1e-2,
+                );
                 starts.push(best_start(b).0);
                 bs.push(b);
             }
@@ -145,8 +227,9 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
             let kv = (0..axes)
                 .map(|k| {
                     let p = &data.plants[k];
+                    let (lo, hi) = KV_RATIO_RANGE;
                     let grid: Vec<f64> = (0..13)
-                        .map(|i| p.servo.kv * 0.5 * 4f64.powf(i as f64 / 12.0))
+                        .map(|i| p.servo.kv * lo * (hi / lo).powf(i as f64 / 12.0))
                         .collect();
                     let loss = |kv: f64| {
                         if grid.contains(&kv) {
@@ -237,16 +320,17 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
                     (a.0.min(v), a.1.max(v))
                 });
                 let top = (hi - lo) / 1.5;
-                if top.is_nan() || top < 0.5 {
+                let (pmin, pmax) = CYCLIC_PITCH_RANGE_MM;
+                if top.is_nan() || top < pmin {
                     pitch.push(1.0);
                     sn.push(0.0);
                     cs.push(0.0);
                     continue;
                 }
-                let top = top.min(64.0);
-                let steps = ((top / 0.5).ln() / (128f64.ln() / 84.0)).ceil().max(2.0) as usize;
+                let top = top.min(pmax);
+                let steps = ((top / pmin).ln() / (128f64.ln() / 84.0)).ceil().max(2.0) as usize;
                 let grid: Vec<f64> = (0..=steps)
-                    .map(|i| 0.5f64.ln() + i as f64 * (top / 0.5).ln() / steps as f64)
+                    .map(|i| pmin.ln() + i as f64 * (top / pmin).ln() / steps as f64)
                     .collect();
                 // the pitch search runs on at most ~20,000 samples, the refinement on all
                 let stride = (w.len() / 20_000).max(1);
@@ -297,7 +381,19 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64], hint: Option<&Fitted>) -> 
             };
             let mut best = fit_tau(f64::INFINITY);
             let mut best_tau = f64::INFINITY;
-            for m in [0.05, 0.1, 0.2, 0.3, 0.5, 0.7, 1.0, 1.5, 2.0, 3.0, 5.0] {
+            for m in [
+                THERMAL_TAU_MIN_FRACTION,
+                0.1,
+                0.2,
+                0.3,
+                0.5,
+                0.7,
+                1.0,
+                1.5,
+                2.0,
+                3.0,
+                5.0,
+            ] {
                 let cand = fit_tau(m * duration);
                 if cand.1 < best.1 {
                     best = cand;

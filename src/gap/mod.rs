@@ -12,7 +12,9 @@ pub mod plant;
 pub mod programs;
 pub mod request;
 pub mod selfcheck;
+pub mod steps;
 pub mod truth;
+pub mod unexplained;
 
 pub use answer::{motion_answer, part_answer};
 pub use effects::{Effect, Fitted};
@@ -24,5 +26,6 @@ pub use motion::{
 };
 pub use part::{PartBlock, PartDiagnosis, PartEffect, PartGrid, diagnose_part};
 pub use request::{
-    GapRequest, MAX_SAMPLES, MotionInputs, diagnose_motion_request, motion_inputs, rows_to_columns,
+    GapRequest, MAX_SAMPLES, MotionInputs, ProgramCommand, diagnose_motion_program,
+    diagnose_motion_request, motion_inputs, motion_inputs_with, rows_to_columns,
 };

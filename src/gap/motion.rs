@@ -6,8 +6,10 @@ use serde::Serialize;
 use crate::gap::Error;
 use crate::gap::effects::{Effect, Fitted};
 use crate::gap::events::{Span, rank_spans};
-use crate::gap::fit::{FitData, fit, sse};
+use crate::gap::fit::{SimCache, at_bound};
 use crate::gap::plant::AxisPlant;
+use crate::gap::steps::{Model, Problem, compose, cross_validate};
+use crate::gap::unexplained::{Periodic, periodic_components};
 use crate::motion::{ServoAxis, StructuralMode};
 use crate::numeric::parallel::map_dynamic;
 
@@ -33,6 +35,8 @@ pub struct MotionOptions {
     pub max_spans: usize,
     /// Worker threads for the effect fits (1 = single-threaded).
     pub threads: usize,
+    /// Most effects added one after another in `steps`.
+    pub max_steps: usize,
 }
 
 impl Default for MotionOptions {
@@ -43,6 +47,7 @@ impl Default for MotionOptions {
             min_improvement_noise: 0.1,
             max_spans: 20,
             threads: 2,
+            max_steps: 4,
         }
     }
 }
@@ -65,6 +70,34 @@ pub struct EffectResult {
     pub params: Vec<(String, f64)>,
     /// Held-out fraction of the squared gap removed (blocked CV), ≤ 1; negative = worse.
     pub score: f64,
+    /// Parameters that ended at a bound of their search (names as in `params`).
+    pub at_bound: Vec<String>,
+}
+
+/// One step of the forward selection: the effect added, fitted jointly with the earlier ones.
+#[derive(Clone, Debug)]
+pub struct StepResult {
+    /// The added effect's parameters in the joint fit of this step (all the main data).
+    pub fitted: Fitted,
+    /// Named parameters (units in the names).
+    pub params: Vec<(String, f64)>,
+    /// Parameters that ended at a bound of their search (always empty for a chosen step).
+    pub at_bound: Vec<String>,
+    /// Measured vs simulation with this and all earlier steps' effects.
+    pub gap_after: GapStats,
+    /// Held-out fraction of the remaining squared gap this step removed.
+    pub score: f64,
+}
+
+/// What the steps leave unexplained.
+#[derive(Clone, Debug)]
+pub struct Unexplained {
+    /// RMS of |measured − simulation with every step|, mm.
+    pub rms: f64,
+    /// Part of the original squared gap left, 0..1.
+    pub share: f64,
+    /// Strongest periodic components of the rest.
+    pub periodic: Vec<Periodic>,
 }
 
 /// Validation predictions (per axis columns, mm) without and with the verdict's effect.
@@ -78,6 +111,10 @@ pub struct MotionValidation {
     pub rms_before: f64,
     /// RMS of |measured − predicted_after|, mm.
     pub rms_after: f64,
+    /// The prediction after each step (fitted on the main block only).
+    pub predicted_steps: Vec<Vec<Vec<f64>>>,
+    /// RMS of `|measured − predicted_steps[m]|` per step, mm.
+    pub rms_steps: Vec<f64>,
 }
 
 /// The answer of a motion diagnosis.
@@ -93,6 +130,10 @@ pub struct MotionDiagnosis {
     pub verdict: Effect,
     /// Measured vs simulation with the verdict's effect.
     pub gap_after: GapStats,
+    /// Effects added one after another while the held-out score improves.
+    pub steps: Vec<StepResult>,
+    /// What the steps leave.
+    pub unexplained: Unexplained,
     /// Present when a validation block was given.
     pub validation: Option<MotionValidation>,
     /// Noise standard deviation estimated from the residual, mm.
@@ -200,12 +241,20 @@ pub fn diagnose_motion(
     validation: Option<&MotionBlock>,
     opts: &MotionOptions,
 ) -> Result<MotionDiagnosis, Error> {
-    diagnose_motion_structured(axes, servo, &[], period_s, main, validation, opts)
+    diagnose_motion_structured(axes, servo, &[], period_s, main, validation, None, opts)
 }
 
 /// As [`diagnose_motion`], with the machine's structural mode per axis (Zhang & Chen 2025 eq. 10)
 /// between motor and table (`structure[k]`, missing entries = rigid), as the contour
-/// prediction simulates it.
+/// prediction simulates it, and the program `lines` executing at each sample when the command
+/// came from a program (named in `where`).
+///
+/// After the verdict, effects are added one after another ([`crate::gap::steps`]): each
+/// remaining effect is fitted jointly with those chosen and scored on the held-out folds
+/// against the model so far, with the same rule (`min_score` of the remaining held-out squared
+/// gap, `min_improvement_noise·σ̂²`); effects with unphysical fits or parameters at a search
+/// bound are never chosen. `unexplained` is what the steps leave.
+#[allow(clippy::too_many_arguments)]
 pub fn diagnose_motion_structured(
     axes: &[String],
     servo: &[ServoAxis],
@@ -213,6 +262,7 @@ pub fn diagnose_motion_structured(
     period_s: f64,
     main: &MotionBlock,
     validation: Option<&MotionBlock>,
+    lines: Option<&[u32]>,
     opts: &MotionOptions,
 ) -> Result<MotionDiagnosis, Error> {
     if !period_s.is_finite() || period_s <= 0.0 || period_s > 10.0 {
@@ -255,83 +305,133 @@ pub fn diagnose_motion_structured(
         .map(|(m, b)| m.iter().zip(b).map(|(m, b)| m - b).collect())
         .collect();
     let gap_before = gap_stats(&main.measured, &base);
-    let spans = rank_spans(&main.commanded, &residual, axes, opts.max_spans);
+    let mut spans = rank_spans(&main.commanded, &residual, axes, opts.max_spans);
+    if let Some(lines) = lines {
+        // an event at sample j is the motion from j to j + 1: the line of sample j + 1 runs it
+        for s in spans.iter_mut() {
+            let at = if s.start == 0 {
+                0
+            } else {
+                (s.start + 1).min(n - 1)
+            };
+            s.line = lines.get(at).copied();
+        }
+    }
     let noise = noise_sigma(&residual);
-    let data = FitData {
+    let cache = SimCache::default();
+    let problem = Problem {
         plants: &plants,
         cmd: &main.commanded,
         meas: &main.measured,
         base: &base,
-        cache: Default::default(),
+        cache: &cache,
     };
-
-    let fold_of = |i: usize| i * folds / n;
-    let evaluate = |effect: Effect| -> (Fitted, f64, f64) {
-        let all = vec![1.0; n];
-        let full = fit(effect, &data, &all, None);
-        let (mut held_eff, mut held_none) = (0.0, 0.0);
-        for j in 0..folds {
-            let train: Vec<f64> = (0..n)
-                .map(|i| if fold_of(i) == j { 0.0 } else { 1.0 })
-                .collect();
-            let test: Vec<f64> = train.iter().map(|w| 1.0 - w).collect();
-            let fitted = fit(effect, &data, &train, Some(&full));
-            let pred = fitted.predict(&plants, &main.commanded, &base);
-            let (he, hn) = (held_eff, held_none);
-            for k in 0..dims {
-                held_eff += sse(&main.measured[k], &pred[k], &test);
-                held_none += sse(&main.measured[k], &base[k], &test);
-            }
-            if std::env::var("GAP_DEBUG").is_ok()
-                && matches!(effect, Effect::Backlash | Effect::CoulombFriction)
-            {
-                eprintln!(
-                    "fold {j} {effect:?} eff {:.3e} none {:.3e} {fitted:?}",
-                    held_eff - he,
-                    held_none - hn
-                );
-            }
-        }
-        let fitted = full;
-        let score = if held_none > 0.0 {
-            1.0 - held_eff / held_none
-        } else {
-            0.0
-        };
-        (fitted, score, (held_none - held_eff) / (n * dims) as f64)
-    };
-    let results = map_dynamic(&Effect::LIBRARY, opts.threads, evaluate);
-
     let duration = (n - 1) as f64 * period_s;
-    let mut effects: Vec<(EffectResult, f64)> = results
-        .into_iter()
-        .map(|(fitted, score, gain)| {
-            let params = fitted.params(axes, &plants, duration);
-            (
-                EffectResult {
-                    fitted,
-                    params,
+    let all = vec![1.0; n];
+    let threshold = opts.min_improvement_noise * noise * noise;
+
+    // forward selection: step 0 scores every library effect against "none" (the `effects`
+    // list); each later step scores the remaining effects against the model chosen so far
+    let mut fold_models = vec![Model::default(); folds];
+    let mut full = Model::default();
+    let mut effects: Vec<EffectResult> = Vec::new();
+    let mut steps: Vec<StepResult> = Vec::new();
+    let mut step_models: Vec<Model> = Vec::new();
+    while steps.len() < opts.max_steps {
+        let candidates: Vec<Effect> = Effect::LIBRARY
+            .iter()
+            .copied()
+            .filter(|e| !full.members.iter().any(|m| m.effect() == *e))
+            .collect();
+        if candidates.is_empty() {
+            break;
+        }
+        let results = map_dynamic(&candidates, opts.threads, |effect| {
+            let (models, held_new, held_old) = cross_validate(&problem, &fold_models, effect);
+            let joint = full.with(&problem, effect, &all, 2);
+            (models, held_new, held_old, joint)
+        });
+        let mut scored: Vec<Candidate> = results
+            .into_iter()
+            .map(|(models, held_new, held_old, joint)| {
+                let fitted = joint.members.last().cloned().unwrap_or(Fitted::None);
+                let score = if held_old > 0.0 {
+                    1.0 - held_new / held_old
+                } else {
+                    0.0
+                };
+                Candidate {
+                    at_bound: at_bound(&fitted, axes, &plants, duration),
+                    unphysical: joint.members.iter().find_map(|m| m.unphysical(duration)),
                     score: if score.is_finite() {
                         score
                     } else {
                         f64::NEG_INFINITY
                     },
-                },
-                gain,
-            )
-        })
-        .collect();
-    effects.sort_by(|a, b| b.0.score.total_cmp(&a.0.score));
-    let chosen = effects
+                    gain: (held_old - held_new) / (n * dims) as f64,
+                    fitted,
+                    models,
+                    joint,
+                }
+            })
+            .collect();
+        scored.sort_by(|a, b| b.score.total_cmp(&a.score));
+        if steps.is_empty() {
+            // the ranked list: every effect alone, without the unphysical fits
+            effects = scored
+                .iter()
+                .filter(|c| c.unphysical.is_none())
+                .map(|c| EffectResult {
+                    params: c.fitted.params(axes, &plants, duration),
+                    fitted: c.fitted.clone(),
+                    score: c.score,
+                    at_bound: c.at_bound.clone(),
+                })
+                .collect();
+        }
+        let Some(best) = scored.into_iter().find(|c| {
+            c.unphysical.is_none()
+                && c.at_bound.is_empty()
+                && c.score >= opts.min_score
+                && c.gain >= threshold
+        }) else {
+            break;
+        };
+        fold_models = best.models;
+        full = best.joint;
+        let pred = full.predict(&base);
+        steps.push(StepResult {
+            params: best.fitted.params(axes, &plants, duration),
+            at_bound: best.at_bound,
+            fitted: best.fitted,
+            gap_after: gap_stats(&main.measured, &pred),
+            score: best.score,
+        });
+        step_models.push(full.clone());
+    }
+    let chosen = steps
         .first()
-        .filter(|(e, gain)| {
-            e.score >= opts.min_score && *gain >= opts.min_improvement_noise * noise * noise
-        })
-        .map(|(e, _)| e.fitted.clone())
+        .map(|s| s.fitted.clone())
         .unwrap_or(Fitted::None);
     let verdict = chosen.effect();
-    let after = chosen.predict(&plants, &main.commanded, &base);
-    let gap_after = gap_stats(&main.measured, &after);
+    let gap_after = steps.first().map_or(gap_before, |s| s.gap_after);
+    let after_all = full.predict(&base);
+    let rest: Vec<Vec<f64>> = main
+        .measured
+        .iter()
+        .zip(&after_all)
+        .map(|(m, p)| m.iter().zip(p).map(|(m, p)| m - p).collect())
+        .collect();
+    let left = gap_stats(&main.measured, &after_all);
+    let unexplained = Unexplained {
+        rms: left.rms,
+        share: if gap_before.rms > 0.0 {
+            (left.rms / gap_before.rms).powi(2)
+        } else {
+            0.0
+        },
+        periodic: periodic_components(&rest, &base, axes, period_s),
+    };
 
     let validation = validation.map(|v| {
         let vbase: Vec<Vec<f64>> = plants
@@ -340,22 +440,44 @@ pub fn diagnose_motion_structured(
             .map(|(p, c)| p.linear(c))
             .collect();
         let vafter = chosen.predict(&plants, &v.commanded, &vbase);
+        let predicted_steps: Vec<Vec<Vec<f64>>> = step_models
+            .iter()
+            .map(|m| compose(&m.members, &plants, &v.commanded, &vbase))
+            .collect();
         MotionValidation {
             rms_before: gap_stats(&v.measured, &vbase).rms,
             rms_after: gap_stats(&v.measured, &vafter).rms,
+            rms_steps: predicted_steps
+                .iter()
+                .map(|p| gap_stats(&v.measured, p).rms)
+                .collect(),
             predicted_before: vbase,
             predicted_after: vafter,
+            predicted_steps,
         }
     });
     Ok(MotionDiagnosis {
         gap_before,
         spans,
-        effects: effects.into_iter().map(|e| e.0).collect(),
+        effects,
         verdict,
         gap_after,
+        steps,
+        unexplained,
         validation,
         noise_mm: noise,
     })
+}
+
+/// One candidate of a selection step.
+struct Candidate {
+    fitted: Fitted,
+    at_bound: Vec<String>,
+    unphysical: Option<String>,
+    score: f64,
+    gain: f64,
+    models: Vec<Model>,
+    joint: Model,
 }
 
 #[cfg(test)]

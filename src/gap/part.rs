@@ -84,6 +84,9 @@ pub struct Region {
     pub share: f64,
     /// "corner", "edge" or "interior" and where.
     pub label: String,
+    /// The region's extent in machine coordinates: `[[x_min, x_max], [y_min, y_max],
+    /// [z_min, z_max]]` over its grid points, mm.
+    pub range_mm: [[f64; 2]; 3],
 }
 
 /// A fitted part effect.
@@ -407,7 +410,8 @@ fn part_params(
     }
 }
 
-/// Splits the grid into up to 4×4 regions and ranks them by share of Σr².
+/// Splits the grid into up to 4×4 regions and ranks them by share of Σr²; each region gives
+/// its extent in mm beside its grid indices.
 fn regions(grid: &PartGrid, r: &[f64]) -> Vec<Region> {
     let total: f64 = r.iter().map(|x| x * x).sum();
     let bu = grid.nu.min(4);
@@ -418,9 +422,16 @@ fn regions(grid: &PartGrid, r: &[f64]) -> Vec<Region> {
             let (u0, u1) = (ju * grid.nu / bu, (ju + 1) * grid.nu / bu - 1);
             let (v0, v1) = (jv * grid.nv / bv, (jv + 1) * grid.nv / bv - 1);
             let mut s = 0.0;
+            let mut range_mm = [[f64::INFINITY, f64::NEG_INFINITY]; 3];
             for iv in v0..=v1 {
                 for iu in u0..=u1 {
                     s += r[iv * grid.nu + iu].powi(2);
+                    if let Some(p) = grid.points.get(iv * grid.nu + iu) {
+                        for (c, rg) in range_mm.iter_mut().enumerate() {
+                            rg[0] = rg[0].min(p[c]);
+                            rg[1] = rg[1].max(p[c]);
+                        }
+                    }
                 }
             }
             let edge_u = ju == 0 || ju + 1 == bu;
@@ -448,6 +459,7 @@ fn regions(grid: &PartGrid, r: &[f64]) -> Vec<Region> {
                     side(ju, bu, "low", "high"),
                     side(jv, bv, "low", "high")
                 ),
+                range_mm,
             });
         }
     }

@@ -3,6 +3,8 @@
 //! [`MotionBlock`] and run against a machine's servo axes. The server, `truecut gap diagnose`
 //! and `truecut gap csv` all come here. Errors name the field and the fix.
 
+use std::collections::BTreeMap;
+
 use serde::Deserialize;
 use serde_json::Value;
 
@@ -50,6 +52,34 @@ pub struct GapRequest {
     /// Extension: cross-validation folds (default 5, 2..=10).
     #[serde(default)]
     pub folds: Option<usize>,
+    /// Motion: the program whose interpolation on this machine is the command (instead of
+    /// `commanded`; CONTRACT v1.1).
+    #[serde(default)]
+    pub gcode: Option<String>,
+    /// Motion with `gcode`: refuse (422) every word the reader would pass with a warning.
+    #[serde(default)]
+    pub strict: bool,
+    /// Motion with `gcode`: work offsets by code ("G54".."G59"), [x, y, z] mm.
+    #[serde(default)]
+    pub work_offsets: BTreeMap<String, [f64; 3]>,
+    /// Motion with `gcode`: tool lengths by H number, mm.
+    #[serde(default)]
+    pub tool_lengths: BTreeMap<String, f64>,
+    /// Motion with `gcode`: machine home for G28/G30/G53, [x, y, z] mm.
+    #[serde(default)]
+    pub home: Option<[f64; 3]>,
+}
+
+/// The command of a motion request that came as a program: per-axis columns (mm), the program
+/// line executing at each sample, and the reader's warnings.
+#[derive(Clone, Debug, Default)]
+pub struct ProgramCommand {
+    /// Command per axis, mm, one sample per `period_s` from the program's start.
+    pub commanded: Vec<Vec<f64>>,
+    /// 1-based program line per sample.
+    pub lines: Vec<u32>,
+    /// Reader warnings and notes on the program ("line N: word: message").
+    pub warnings: Vec<String>,
 }
 
 /// The motion domain's `validation` block.
@@ -104,7 +134,18 @@ pub fn rows_to_columns(field: &str, rows: &[Vec<f64>]) -> Result<Vec<Vec<f64>>, 
 /// Runs the motion diagnosis of `req` against the machine's servo models (sync core call;
 /// also used by `truecut gap diagnose` and `truecut gap csv`).
 pub fn diagnose_motion_request(axes: &ServoAxes, req: &GapRequest) -> Result<Value, Error> {
-    let (main, validation, period_s, opts) = motion_inputs(axes, req)?;
+    diagnose_motion_program(axes, req, None)
+}
+
+/// As [`diagnose_motion_request`], with the command taken from `program` (the interpolation of
+/// the request's `gcode`, made by the caller) instead of `commanded`: `where` then names the
+/// program lines and the answer carries the reader's `warnings`.
+pub fn diagnose_motion_program(
+    axes: &ServoAxes,
+    req: &GapRequest,
+    program: Option<&ProgramCommand>,
+) -> Result<Value, Error> {
+    let (main, validation, period_s, opts) = motion_inputs_with(axes, req, program)?;
     let dims = main.commanded.len();
     let d = diagnose_motion_structured(
         &axes.names[..dims],
@@ -113,9 +154,14 @@ pub fn diagnose_motion_request(axes: &ServoAxes, req: &GapRequest) -> Result<Val
         period_s,
         &main,
         validation.as_ref(),
+        program.map(|p| p.lines.as_slice()),
         &opts,
     )?;
-    Ok(motion_answer(&axes.names[..dims], &d))
+    let mut answer = motion_answer(&axes.names[..dims], &d);
+    if let Some(p) = program {
+        answer["warnings"] = serde_json::json!(p.warnings);
+    }
+    Ok(answer)
 }
 
 /// A motion request checked: the block, the validation block, the period (s), the options.
@@ -126,6 +172,33 @@ pub type MotionInputs = (MotionBlock, Option<MotionBlock>, f64, MotionOptions);
 /// `commanded` and `measured` rows (mm) of the same shape, with no more columns than the
 /// machine has axes. Each error names the field to fix.
 pub fn motion_inputs(axes: &ServoAxes, req: &GapRequest) -> Result<MotionInputs, Error> {
+    motion_inputs_with(axes, req, None)
+}
+
+/// As [`motion_inputs`], the command coming from `program` when given: its columns are cut
+/// to the measured row width and its length must equal the measured rows' (the caller fits
+/// the interpolation to the measurement's length).
+pub fn motion_inputs_with(
+    axes: &ServoAxes,
+    req: &GapRequest,
+    program: Option<&ProgramCommand>,
+) -> Result<MotionInputs, Error> {
+    if req.gcode.is_some() && req.commanded.is_some() {
+        return Err(Error::Request(
+            "send either commanded (rows) or gcode (a program), not both".into(),
+        ));
+    }
+    if req.gcode.is_none()
+        && (req.strict
+            || !req.work_offsets.is_empty()
+            || !req.tool_lengths.is_empty()
+            || req.home.is_some())
+    {
+        return Err(Error::Request(
+            "strict, work_offsets, tool_lengths and home read a program: send them with gcode"
+                .into(),
+        ));
+    }
     for (name, present) in [
         ("surface", req.surface.is_some()),
         ("measurement", req.measurement.is_some()),
@@ -157,8 +230,20 @@ pub fn motion_inputs(axes: &ServoAxes, req: &GapRequest) -> Result<MotionInputs,
             })?,
         )
     };
-    let commanded = need("commanded", &req.commanded)?;
     let measured = need("measured", &req.measured)?;
+    let commanded = match program {
+        Some(p) => {
+            let dims = measured.len();
+            if p.commanded.len() < dims {
+                return Err(Error::Request(format!(
+                    "measured rows have {dims} values but the program moves only {} axes",
+                    p.commanded.len()
+                )));
+            }
+            p.commanded[..dims].to_vec()
+        }
+        None => need("commanded", &req.commanded)?,
+    };
     let dims = commanded.len();
     if measured.len() != dims {
         return Err(Error::Request(format!(
@@ -206,7 +291,8 @@ pub fn motion_inputs(axes: &ServoAxes, req: &GapRequest) -> Result<MotionInputs,
         return Err(Error::Request(format!("folds must be 2..=10, got {folds}")));
     }
     // small blocks: one thread per request (the pool runs requests side by side); large
-    // blocks: the 7 effect fits on 2 threads, so one 100,000-sample request stays near 5 s
+    // blocks: the effect fits on 2 threads (benches/gap.rs: about 16 s for 100,000 samples x 3
+    // axes with steps on this 2-core machine)
     let threads = if commanded[0].len() >= 20_000 { 2 } else { 1 };
     let opts = MotionOptions {
         folds,

@@ -4,6 +4,7 @@
 
 use rand::{RngExt, SeedableRng};
 
+use crate::gap::events::axis_events;
 use crate::gap::motion::{MotionBlock, MotionOptions, diagnose_motion};
 use crate::gap::programs::{Program, generate};
 use crate::gap::truth::{Truth, draw, measure};
@@ -23,6 +24,14 @@ pub struct CaseResult {
     pub program: Program,
     /// Noise σ used, mm.
     pub sigma: f64,
+    /// Friction and backlash cases: whether `where`'s top entry names an affected axis and
+    /// overlaps one of that axis' reversals (affected: the axes whose noise-free gap RMS is at
+    /// least half the largest axis').
+    pub where_ok: Option<bool>,
+    /// The top `where` entry, "label (axis) start..end".
+    pub where_top: String,
+    /// Effects in `steps`, in order.
+    pub steps: Vec<Effect>,
 }
 
 /// Summary of a self-check run.
@@ -36,6 +45,8 @@ pub struct SelfCheckReport {
     pub median_shrink: f64,
     /// Share of "none" cases answered with an effect.
     pub false_alarm_rate: f64,
+    /// Per truth class with `where_ok`: (class, right, cases).
+    pub where_accuracy: Vec<(String, usize, usize)>,
 }
 
 fn random_servo(axes: usize, rng: &mut impl rand::Rng) -> Vec<ServoAxis> {
@@ -143,6 +154,45 @@ fn run_case_inner(
             );
         }
     }
+    let where_ok = matches!(truth, Truth::Friction(_) | Truth::Backlash(..)).then(|| {
+        let clean = measure(&servo, &Truth::None, &main.commanded, period, 0.0, &mut rng);
+        let hidden = measure(&servo, &truth, &main.commanded, period, 0.0, &mut rng);
+        let rms: Vec<f64> = (0..axes)
+            .map(|k| {
+                let s: f64 = clean[k]
+                    .iter()
+                    .zip(&hidden[k])
+                    .map(|(a, b)| (a - b).powi(2))
+                    .sum();
+                (s / clean[k].len() as f64).sqrt()
+            })
+            .collect();
+        let top = rms.iter().copied().fold(0.0, f64::max);
+        d.spans.first().is_some_and(|span| {
+            let Some(k) = names.iter().position(|a| *a == span.axis) else {
+                return false;
+            };
+            rms[k] >= 0.5 * top
+                && axis_events(&main.commanded, k, &names[k])
+                    .iter()
+                    .any(|(i, l)| l.ends_with("reversal") && *i + 5 >= span.start && *i <= span.end)
+        })
+    });
+    let where_top = d.spans.first().map_or(String::new(), |s| {
+        format!("{} ({}) {}..{}", s.label, s.axis, s.start, s.end)
+    });
+    if verbose {
+        eprintln!("where: {:?}", &d.spans[..d.spans.len().min(4)]);
+        for s in &d.steps {
+            eprintln!(
+                "  step {:<22} score {:.4} {:?}",
+                s.fitted.effect().name(),
+                s.score,
+                s.params
+            );
+        }
+        eprintln!("  unexplained {:?}", d.unexplained);
+    }
     let v = d.validation.expect("validation requested");
     Ok(CaseResult {
         truth: truth
@@ -157,6 +207,9 @@ fn run_case_inner(
         },
         program,
         sigma,
+        where_ok,
+        where_top,
+        steps: d.steps.iter().map(|s| s.fitted.effect()).collect(),
     })
 }
 
@@ -188,7 +241,23 @@ pub fn run(cases: usize, seed: u64, opts: &MotionOptions) -> Result<SelfCheckRep
     shrinks.sort_by(f64::total_cmp);
     let nones: Vec<&&CaseResult> = scored.iter().filter(|c| c.truth == "none").collect();
     let alarms = nones.iter().filter(|c| c.verdict != Effect::None).count();
+    let where_accuracy = ["coulomb_friction", "backlash"]
+        .iter()
+        .map(|class| {
+            let rows: Vec<bool> = cases
+                .iter()
+                .filter(|c| c.truth == *class)
+                .filter_map(|c| c.where_ok)
+                .collect();
+            (
+                class.to_string(),
+                rows.iter().filter(|ok| **ok).count(),
+                rows.len(),
+            )
+        })
+        .collect();
     Ok(SelfCheckReport {
+        where_accuracy,
         accuracy: correct as f64 / scored.len().max(1) as f64,
         median_shrink: shrinks.get(shrinks.len() / 2).copied().unwrap_or(0.0),
         false_alarm_rate: alarms as f64 / nones.len().max(1) as f64,
@@ -228,6 +297,12 @@ impl SelfCheckReport {
             100.0 * self.median_shrink,
             100.0 * self.false_alarm_rate
         );
+        for (class, ok, total) in &self.where_accuracy {
+            out += &format!(
+                "where right on {class}: {ok}/{total} ({:.0} %)\n",
+                100.0 * *ok as f64 / (*total).max(1) as f64
+            );
+        }
         out
     }
 }

@@ -69,7 +69,29 @@ async fn motion_backlash_found_located_and_validated(app: TestApp) {
             .iter()
             .any(|s| s["label"].as_str().unwrap().contains("reversal"))
     );
+    // each where entry names its axis; the top one is a reversal
+    assert!(
+        spans.iter().all(|s| s["axis"] == "X" || s["axis"] == "Y"),
+        "{spans:?}"
+    );
+    assert!(
+        spans[0]["label"].as_str().unwrap().contains("reversal"),
+        "{}",
+        spans[0]
+    );
+    // steps: the verdict first, each with its gap after; unexplained is what they leave
+    let steps = a["steps"].as_array().unwrap();
+    assert_eq!(steps[0]["effect"], "backlash", "{steps:?}");
+    let last = steps.last().unwrap()["gap_after"]["rms"].as_f64().unwrap();
+    assert!(last <= after + 1e-12, "{last} {after}");
+    let u = &a["unexplained"];
+    assert!((u["rms"].as_f64().unwrap() - last).abs() < 1e-9, "{u}");
+    let share = u["share"].as_f64().unwrap();
+    assert!((share - (last / before).powi(2)).abs() < 1e-9, "{u}");
+    assert!(u["periodic"].is_array());
     let v = &a["validation"];
+    assert_eq!(v["predicted_steps"].as_array().unwrap().len(), steps.len());
+    assert_eq!(v["predicted_steps"][0].as_array().unwrap().len(), vc.len());
     assert_eq!(v["predicted_before"].as_array().unwrap().len(), vc.len());
     assert_eq!(v["predicted_after"][0].as_array().unwrap().len(), 2);
     let (rb, ra) = (
@@ -88,6 +110,102 @@ async fn motion_backlash_found_located_and_validated(app: TestApp) {
     assert!(((sum / vm.len() as f64).sqrt() - ra).abs() < 1e-9);
 }
 on_both_backends!(motion_backlash_found_located_and_validated);
+
+/// A gain three times the stored one: the gain search stops at its bound (2x), the effect is
+/// flagged `at_bound` and is neither the verdict nor a step.
+async fn motion_parameter_at_a_search_bound_is_flagged_not_a_finding(app: TestApp) {
+    let r = app.put_json("/v1/machines/m1", &machine()).await;
+    assert!(r.status().is_success());
+    let truth = Truth::Mismatch(vec![90.0, 30.0]);
+    let (c, m) = block(&truth, false, 5);
+    let body = json!({"domain": "motion", "period_s": 0.001, "commanded": c, "measured": m});
+    let r = app.post_json("/v1/machines/m1/gap-diagnosis", &body).await;
+    assert_eq!(r.status(), 200);
+    let a: Value = r.json().await.unwrap();
+    let gain = a["effects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|e| e["effect"] == "servo_gain_mismatch")
+        .expect("listed");
+    eprintln!(
+        "goal: x_kv_ratio flagged at its bound; ours {gain}; verdict {}",
+        a["verdict"]
+    );
+    let flagged: Vec<&str> = gain["at_bound"]
+        .as_array()
+        .expect("at_bound")
+        .iter()
+        .map(|v| v.as_str().unwrap())
+        .collect();
+    assert!(flagged.contains(&"x_kv_ratio"), "{gain}");
+    assert_ne!(a["verdict"], "servo_gain_mismatch");
+    assert!(
+        a["steps"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|s| s["effect"] != "servo_gain_mismatch")
+    );
+}
+on_both_backends!(motion_parameter_at_a_search_bound_is_flagged_not_a_finding);
+
+const PROGRAM: &str =
+    "G21 G90 G17\nG0 X100 Y100\nG1 X140 F1500\nG1 Y110\nG1 X100\nG1 Y120\nG1 X140\nM30\n";
+
+/// A program instead of commanded rows: the service interpolates it on the machine, finds the
+/// backlash on X and names the program line of the X reversal in `where`.
+async fn motion_from_gcode_names_program_lines(app: TestApp) {
+    use truecut::motion::{Machine, MachineDef, interpolate, parse_with};
+    let r = app.put_json("/v1/machines/m1", &machine()).await;
+    assert!(r.status().is_success());
+    let def: MachineDef = serde_json::from_value(machine()).unwrap();
+    let sim = Machine::from_def(&def).unwrap();
+    let (program, _) = parse_with(PROGRAM, &Default::default()).unwrap();
+    let traj = interpolate(&program, &sim, 0.001, 1_000_000).unwrap();
+    let cmd = vec![traj.axes[0].clone(), traj.axes[1].clone()];
+    let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+    let meas = measure(
+        &[servo(), servo()],
+        &Truth::Backlash(vec![0.015, 0.0], true),
+        &cmd,
+        0.001,
+        0.0003,
+        &mut rng,
+    );
+    let body =
+        json!({"domain": "motion", "period_s": 0.001, "gcode": PROGRAM, "measured": rows(&meas)});
+    let r = app.post_json("/v1/machines/m1/gap-diagnosis", &body).await;
+    assert_eq!(r.status(), 200);
+    let a: Value = r.json().await.unwrap();
+    let top = &a["where"][0];
+    eprintln!(
+        "goal: backlash, top where = X reversal at line 5 or 7; ours {} {top}",
+        a["verdict"]
+    );
+    assert_eq!(a["verdict"], "backlash", "{}", a["effects"]);
+    assert_eq!(top["axis"], "X", "{top}");
+    assert!(
+        top["label"].as_str().unwrap().contains("X reversal"),
+        "{top}"
+    );
+    let line = top["line"].as_u64().expect("a program line");
+    assert!(line == 5 || line == 7, "{top}");
+    assert!(a["warnings"].is_array());
+    // both a program and rows: 400 naming both
+    let both = json!({"domain": "motion", "period_s": 0.001, "gcode": PROGRAM,
+        "commanded": rows(&cmd), "measured": rows(&meas)});
+    let r = app.post_json("/v1/machines/m1/gap-diagnosis", &both).await;
+    assert_eq!(r.status(), 400);
+    let p: Value = r.json().await.unwrap();
+    assert!(p["detail"].as_str().unwrap().contains("gcode"), "{p}");
+    // a reader option without a program: 400
+    let stray = json!({"domain": "motion", "period_s": 0.001, "strict": true,
+        "commanded": rows(&cmd), "measured": rows(&meas)});
+    let r = app.post_json("/v1/machines/m1/gap-diagnosis", &stray).await;
+    assert_eq!(r.status(), 400);
+}
+on_both_backends!(motion_from_gcode_names_program_lines);
 
 async fn motion_none_when_the_stored_model_is_right(app: TestApp) {
     // a 2-axis diagnosis needs only the X and Y servo models

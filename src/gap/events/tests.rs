@@ -35,11 +35,49 @@ fn residual_after_a_stop_ranks_that_span_first_with_its_share() {
     }
     rx[250] = 0.001;
     let spans = rank_spans(&[x, y.clone()], &[rx, y], &names(), 10);
-    assert_eq!(spans[0].label, "stop");
+    assert_eq!(spans[0].label, "X stop");
+    assert_eq!(spans[0].axis, "X");
     assert_eq!(spans[0].start, 100);
     assert!((spans[0].share - 40.0 * 4.0 / (40.0 * 4.0 + 1.0)).abs() < 1e-12);
     assert!(
-        spans[1].label.contains("start") && spans[1].label.contains("X reversal"),
+        spans[1].label == "X reversal" && spans[1].start == 200,
         "{spans:?}"
     );
+}
+
+/// A lag that sets in at each X reversal and persists until the next belongs to the span
+/// that starts at the X reversal, although Y's zig-zag cuts the timeline into many spans.
+#[test]
+fn persisting_lag_goes_to_the_reversal_it_starts_at_not_to_other_axes_events() {
+    // X: 0 -> 10 over 1000 samples, back over 1000; Y steps up 0.5 mm every 100 samples
+    let n = 2000;
+    let x: Vec<f64> = (0..n)
+        .map(|i| {
+            if i < 1000 {
+                i as f64 * 0.01
+            } else {
+                (2000 - i) as f64 * 0.01
+            }
+        })
+        .collect();
+    let y: Vec<f64> = (0..n)
+        .map(|i| {
+            0.5 * (i / 100) as f64
+                + if i % 100 >= 90 {
+                    0.05 * (i % 100 - 90) as f64
+                } else {
+                    0.0
+                }
+        })
+        .collect();
+    // the X lag flips from -5 um to +5 um at the reversal (backlash of 10 um)
+    let rx: Vec<f64> = (0..n)
+        .map(|i| if i < 1000 { -0.005 } else { 0.005 })
+        .collect();
+    let ry = vec![0.0; n];
+    let spans = rank_spans(&[x, y], &[rx, ry], &names(), 5);
+    assert_eq!(spans[0].axis, "X", "{spans:?}");
+    assert_eq!(spans[0].label, "X reversal", "{spans:?}");
+    assert!((spans[0].start as i64 - 1000).abs() <= 1, "{spans:?}");
+    assert!(spans[0].share > 0.5, "{spans:?}");
 }
