@@ -17,7 +17,7 @@
 //! ratio of each chord (never below the programmed F, never above what `max_vel` allows), so
 //! the compensated program keeps the original timing. A step that worsens the RMS is retried
 //! with α halved; iteration stops when the RMS improves by less than 1 % (converged), when α
-//! falls below 1/16, or after `max_iterations`; the best iterate is returned.
+//! falls below 1/4, or after `max_iterations`; the best iterate is returned.
 //!
 //! Axis limits: a point is not moved when moving it would make a junction of the G01
 //! polyline need more than an axis' `max_accel` at the programmed feed (the interpolator would
@@ -39,7 +39,7 @@ use crate::motion::{
     self, Kinematics, Machine, Program, contour_error, interpolate, predict_program,
     simulate_machine,
 };
-use reference::{Reference, correction};
+use reference::{Reference, correction, smooth};
 
 /// Longest program (interpolation periods of the original and of every iterate) the
 /// pre-distortion runs: 2,000,000 periods, 33 min of machining at the default 1 ms period.
@@ -51,6 +51,19 @@ pub const PERIODS_PER_POINT: usize = 4;
 /// Largest distance (mm) of a chord between two points from the original path where the
 /// original ramps its speed (0.5 µm).
 pub const CHORD_TOL_MM: f64 = 5e-4;
+
+/// Fraction by which a step may lower a junction's speed limit from `max_accel` below both
+/// the feed and the undistorted polyline's limit before it is refused (the interpolator then
+/// slows down by at most that fraction for a period there).
+pub const JUNCTION_SLACK: f64 = 0.005;
+
+/// Half-width of the smoothing of the corrections along the path, in interpolation periods
+/// of travel at the programmed feed.
+pub const SMOOTH_PERIODS: f64 = 8.0;
+
+/// Turn of the original path at a point (rad, 5°) from which the corrections are not smoothed
+/// across it.
+pub const BREAK_RAD: f64 = 0.087;
 
 /// Decimals of the returned positions (mm): printed with 4 decimals they reproduce the figures.
 pub const POSITION_DECIMALS: i32 = 4;
@@ -373,15 +386,29 @@ pub fn predistort(
     };
     let lines: Vec<usize> = idx[1..].iter().map(|&k| run.reference.line[k]).collect();
     let init_limits = junction_limits(machine, opts.period_s, start, &pts0);
+    let half_mm: Vec<f64> = run
+        .base_feed
+        .iter()
+        .map(|f| SMOOTH_PERIODS * opts.period_s * f / 60.0)
+        .collect();
+    let breaks = turns_above(start, &pts0, BREAK_RAD);
     let mut cur = pts0.clone();
     let mut cur_eval = run.evaluate(&cur)?;
+    if std::env::var_os("PREDISTORT_TRACE").is_some() {
+        eprintln!("start rms {:.3} µm periods {} (original {})", cur_eval.rms * 1e3, cur_eval.periods, run.orig_periods);
+    }
     let mut alpha = 1.0;
     let mut iterations = 0;
     let mut converged = false;
     let mut refused: Vec<(usize, usize)> = vec![(0, 0); cur.len()];
     let m = cur.len();
     while iterations < opts.max_iterations {
-        let corr = correction(&run.sigma, &cur_eval.feet);
+        let corr = smooth(
+            &correction(&run.sigma, &cur_eval.feet),
+            &run.sigma,
+            &half_mm,
+            &breaks,
+        );
         let mut cand: Vec<[f64; 3]> = (0..m)
             .map(|k| {
                 if k + 1 == m {
@@ -391,8 +418,7 @@ pub fn predistort(
                 }
             })
             .collect();
-        let feeds = run.feeds(&cand);
-        refuse_sharp_junctions(&run, &init_limits, &cur, &mut cand, &feeds, &mut refused);
+        refuse_sharp_junctions(&run, &init_limits, &cur, &mut cand, &mut refused);
         iterations += 1;
         let e = run.evaluate(&cand)?;
         if std::env::var_os("PREDISTORT_TRACE").is_some() {
@@ -408,7 +434,7 @@ pub fn predistort(
             }
         } else {
             alpha *= 0.5;
-            if alpha < 1.0 / 16.0 {
+            if alpha < 0.25 {
                 converged = true;
                 break;
             }
@@ -472,40 +498,80 @@ pub fn predistort(
     })
 }
 
-/// Takes back the moves of the points around every junction of `cand` whose speed limit from
-/// `max_accel` falls below both the feed and the undistorted polyline's limit `init`, counting
-/// the refusals per point (with the limiting axis) in `refused`.
+/// Whether the polyline `start`, `pts` turns by more than `rad` (rad) at each point (the last
+/// point, the end, counts as a turn).
+fn turns_above(start: [f64; 3], pts: &[[f64; 3]], rad: f64) -> Vec<bool> {
+    let m = pts.len();
+    (0..m)
+        .map(|k| {
+            if k + 1 >= m {
+                return true;
+            }
+            let a = sub(pts[k], if k == 0 { start } else { pts[k - 1] });
+            let b = sub(pts[k + 1], pts[k]);
+            let (na, nb) = (norm(a), norm(b));
+            if na == 0.0 || nb == 0.0 {
+                return false;
+            }
+            let cos = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (na * nb);
+            cos.clamp(-1.0, 1.0).acos() > rad
+        })
+        .collect()
+}
+
+/// Points on either side of a refused junction over which the step is tapered.
+const TAPER_POINTS: usize = 8;
+
+/// Shrinks the step `cur → cand` around every junction whose speed limit from `max_accel`
+/// falls below both the feed and the undistorted polyline's limit `init` (by more than
+/// [`JUNCTION_SLACK`]): the step is taken back at the junction and tapered in linearly over
+/// [`TAPER_POINTS`] points on either side, so that no new kink appears beside it. Counts the
+/// refusals per point (with the limiting axis) in `refused`; after 40 passes that still find
+/// such junctions the whole step is taken back.
 fn refuse_sharp_junctions(
     run: &Run,
     init: &[(f64, usize)],
     cur: &[[f64; 3]],
     cand: &mut [[f64; 3]],
-    feeds: &[f64],
     refused: &mut [(usize, usize)],
 ) {
     let m = cand.len();
-    for pass in 0..10 {
+    let step: Vec<[f64; 3]> = (0..m).map(|k| sub(cand[k], cur[k])).collect();
+    let mut w = vec![1.0f64; m];
+    for _pass in 0..40 {
+        let feeds = run.feeds(cand);
         let lim = junction_limits(run.machine, run.period_s, run.start, cand);
         let mut any = false;
         for k in 0..m.saturating_sub(1) {
             let need = feeds[k].min(feeds[k + 1]) / 60.0;
-            let floor = need.min(init[k].0) * (1.0 - 1e-6);
+            let floor = need.min(init[k].0) * (1.0 - JUNCTION_SLACK);
             if lim[k].0 < floor {
                 any = true;
                 refused[k].0 += 1;
                 refused[k].1 = lim[k].1;
-                for j in k.saturating_sub(1)..=(k + 1).min(m - 1) {
-                    cand[j] = cur[j];
+                let lo = k.saturating_sub(TAPER_POINTS);
+                let hi = (k + 1 + TAPER_POINTS).min(m - 1);
+                // Refused again: halve the whole window's step as well.
+                let again = w[k] == 0.0;
+                for (j, wj) in w.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    let d = if j <= k { k - j } else { j - k - 1 };
+                    *wj = wj.min(d as f64 / (TAPER_POINTS + 1) as f64);
+                    if again {
+                        *wj *= 0.5;
+                    }
                 }
             }
         }
         if !any {
             return;
         }
-        if pass == 9 {
-            cand.copy_from_slice(cur);
+        for k in 0..m {
+            cand[k] = std::array::from_fn(|d| {
+                round_to(cur[k][d] + w[k] * step[k][d], POSITION_DECIMALS)
+            });
         }
     }
+    cand.copy_from_slice(cur);
 }
 
 /// One sentence per source line where pre-distortion steps were refused.

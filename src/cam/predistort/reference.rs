@@ -58,7 +58,7 @@ impl Reference {
             feed.push(feed_of(machine, b.feed, b.xyz_length()));
             block_id.push(p);
         }
-        // Speed per sample (forward difference) and cruise speed per block.
+        // Speed per sample (forward difference).
         let speed: Vec<f64> = (0..n)
             .map(|i| {
                 if i + 1 < n {
@@ -68,15 +68,14 @@ impl Reference {
                 }
             })
             .collect();
-        let mut cruise = vec![0.0f64; program.blocks.len().max(1)];
-        for i in 0..n {
-            let c = &mut cruise[block_id[i]];
-            *c = c.max(speed[i]);
-        }
+        // Steady: at the programmed feed (to 1 ppm) from two samples before to two after, in
+        // one block (where the original ramps, extra block boundaries would slow the
+        // jerk-limited planner down: every block starts and ends at zero acceleration).
         let steady_sample = |i: usize| {
-            let c = cruise[block_id[i]];
-            let ok = |k: usize| speed[k] >= 0.995 * c && block_id[k] == block_id[i];
-            c > 0.0 && ok(i) && (i == 0 || ok(i - 1))
+            let ok = |k: usize| {
+                k < n && speed[k] >= (1.0 - 1e-6) * feed[k] / 60.0 && block_id[k] == block_id[i]
+            };
+            i >= 2 && (i - 2..=i + 2).all(ok)
         };
         let mut r = Reference {
             knots: Vec::with_capacity(n),
@@ -270,4 +269,49 @@ pub(super) fn correction(sigma: &[f64], feet: &[(f64, [f64; 3])]) -> Vec<[f64; 3
         };
     }
     out
+}
+
+/// Smooths the per-point corrections `c` along the arc parameter `sigma` (ascending, mm) with
+/// a triangular kernel of half-width `half_mm[k]` around point `k` (mm), never across a point
+/// where `brk` is true (a corner, which keeps its own correction and bounds the window): the
+/// servo cannot reproduce features of the correction shorter than a few periods of travel,
+/// and kinks between neighbouring points would only slow the interpolator down.
+pub(super) fn smooth(
+    c: &[[f64; 3]],
+    sigma: &[f64],
+    half_mm: &[f64],
+    brk: &[bool],
+) -> Vec<[f64; 3]> {
+    let m = c.len();
+    (0..m)
+        .map(|k| {
+            if brk[k] {
+                return c[k];
+            }
+            let h = half_mm[k].max(1e-12);
+            let mut acc = [0.0f64; 3];
+            let mut wsum = 0.0;
+            let mut add = |j: usize| {
+                let w = 1.0 - (sigma[j] - sigma[k]).abs() / h;
+                if w > 0.0 {
+                    wsum += w;
+                    for d in 0..3 {
+                        acc[d] += w * c[j][d];
+                    }
+                }
+            };
+            add(k);
+            let mut j = k;
+            while j > 0 && !brk[j - 1] && sigma[k] - sigma[j - 1] < h {
+                j -= 1;
+                add(j);
+            }
+            let mut j = k + 1;
+            while j < m && !brk[j] && sigma[j] - sigma[k] < h {
+                add(j);
+                j += 1;
+            }
+            acc.map(|v| v / wsum)
+        })
+        .collect()
 }

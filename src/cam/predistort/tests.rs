@@ -30,21 +30,19 @@ fn circle_program(r: f64, feed: f64) -> String {
 }
 
 /// A free-form CAM-like program: a G01 polyline of 0.25 mm chords along the smooth curve
-/// y = 6 sin(2πx/40) + 2 sin(2πx/13) for x in 0..120 mm, with a tangent lead-in.
+/// y = 6 sin(2πx/60) + 1.5 sin(2πx/23) for x in 0..120 mm (smallest radius of curvature
+/// 5.6 mm), entered by a 10 mm tangent lead-in
+/// from the machine's start at the origin.
 fn free_form_program(feed: f64) -> String {
-    let f = |x: f64| {
-        let tau = std::f64::consts::TAU;
-        6.0 * (tau * x / 40.0).sin() + 2.0 * (tau * x / 13.0).sin()
-    };
-    let slope = 6.0 * std::f64::consts::TAU / 40.0 + 2.0 * std::f64::consts::TAU / 13.0;
-    let mut p = format!(
-        "G90 G17 G94\nG0 X{:.4} Y{:.4}\nG1 X0 Y0 F{feed}\n",
-        -10.0 / (1.0 + slope * slope).sqrt(),
-        -10.0 * slope / (1.0 + slope * slope).sqrt()
-    );
+    let tau = std::f64::consts::TAU;
+    let f = |x: f64| 6.0 * (tau * x / 60.0).sin() + 1.5 * (tau * x / 23.0).sin();
+    let slope = 6.0 * tau / 60.0 + 1.5 * tau / 23.0;
+    let n = (1.0 + slope * slope).sqrt();
+    let (x0, y0) = (10.0 / n, 10.0 * slope / n);
+    let mut p = format!("G90 G17 G94\nG1 X{x0:.4} Y{y0:.4} F{feed}\n");
     for k in 1..=480 {
         let x = k as f64 * 0.25;
-        p += &format!("G1 X{x:.4} Y{:.4}\n", f(x));
+        p += &format!("G1 X{:.4} Y{:.4}\n", x0 + x, y0 + f(x));
     }
     p
 }
@@ -265,4 +263,27 @@ fn correction_spreads_and_fills() {
     // Point 2 got no weight: halfway between its neighbours.
     assert_eq!(c[2], [1.0, 2.0, 0.0]);
     assert_eq!(c[3], [0.0, 4.0, 0.0]);
+}
+
+/// Oracle: the foot-point distances on the reference polyline agree with the motion core's
+/// contour error (spline, windowed search) on the original run.
+#[test]
+fn feet_agree_with_contour_error() {
+    let m = machine();
+    for text in [circle_program(10.0, 3000.0), free_form_program(2500.0)] {
+        let prog = gcode::parse(&text).unwrap();
+        let orig = predict_program(&m, &prog, 1e-3, MAX_PERIODS).unwrap();
+        let r = Reference::new(&m, &prog, &orig.commanded);
+        let tips: Vec<[f64; 3]> = (0..orig.actual[0].len())
+            .map(|i| [orig.actual[0][i], orig.actual[1][i], orig.actual[2][i]])
+            .collect();
+        let feet = r.feet(&tips);
+        let worst = feet
+            .iter()
+            .zip(&orig.report.contour_error)
+            .map(|((_, e), c)| ((e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt() - c).abs())
+            .fold(0.0, f64::max);
+        println!("largest difference foot distance vs contour_error: {:.3} µm", worst * 1e3);
+        assert!(worst < 0.5e-3, "{worst}");
+    }
 }
