@@ -9,8 +9,7 @@ use serde_json::json;
 /// X, Y, Z with the default limits (500 mm/s, 5 m/s², 100 m/s³).
 fn machine() -> Machine {
     let ax = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
-    Machine::from_json(&json!({"kinematics": "xyz", "axes": {"X": ax, "Y": ax, "Z": ax}}))
-        .unwrap()
+    Machine::from_json(&json!({"kinematics": "xyz", "axes": {"X": ax, "Y": ax, "Z": ax}})).unwrap()
 }
 
 fn opts() -> PredistortOptions {
@@ -90,7 +89,12 @@ fn run_and_report(name: &str, text: &str) -> Predistorted {
             gcode::Feed::Rapid => m.rapid_mm_min,
             gcode::Feed::InverseTime(_) => unreachable!(),
         };
-        assert!(p.feed_mm_min >= f, "line {}: {} < {f}", p.line, p.feed_mm_min);
+        assert!(
+            p.feed_mm_min >= f,
+            "line {}: {} < {f}",
+            p.line,
+            p.feed_mm_min
+        );
     }
     // The returned program, read back from text, takes no longer than the original.
     let orig_periods = interpolate(&prog, &m, 1e-3, MAX_PERIODS).unwrap().t.len();
@@ -133,13 +137,28 @@ fn recheck_from_text(text: &str, out: &Predistorted) -> ErrorStats {
 
 #[test]
 fn circles_meet_the_gate() {
-    for (r, feed) in [(10.0, 3000.0), (25.0, 2000.0), (50.0, 1000.0), (50.0, 3000.0)] {
+    for (r, feed) in [
+        (10.0, 3000.0),
+        (25.0, 2000.0),
+        (50.0, 1000.0),
+        (50.0, 3000.0),
+    ] {
         let text = circle_program(r, feed);
         let out = run_and_report(&format!("circle R{r} F{feed}"), &text);
         let (o, c) = (out.original, out.compensated);
         assert!(o.max_mm > 1e-3, "the original must have an error to remove");
-        assert!(c.rms_mm <= 0.3 * o.rms_mm, "RMS {} vs {}", c.rms_mm, o.rms_mm);
-        assert!(c.max_mm <= 0.3 * o.max_mm, "max {} vs {}", c.max_mm, o.max_mm);
+        assert!(
+            c.rms_mm <= 0.3 * o.rms_mm,
+            "RMS {} vs {}",
+            c.rms_mm,
+            o.rms_mm
+        );
+        assert!(
+            c.max_mm <= 0.3 * o.max_mm,
+            "max {} vs {}",
+            c.max_mm,
+            o.max_mm
+        );
         let again = recheck_from_text(&text, &out);
         assert!(
             (again.rms_mm - c.rms_mm).abs() <= 1e-9 && (again.max_mm - c.max_mm).abs() <= 1e-9,
@@ -154,10 +173,23 @@ fn free_form_meets_the_gate() {
     let out = run_and_report("free-form G01 F2500", &text);
     let (o, c) = (out.original, out.compensated);
     assert!(o.max_mm > 1e-3);
-    assert!(c.rms_mm <= 0.3 * o.rms_mm, "RMS {} vs {}", c.rms_mm, o.rms_mm);
-    assert!(c.max_mm <= 0.3 * o.max_mm, "max {} vs {}", c.max_mm, o.max_mm);
+    assert!(
+        c.rms_mm <= 0.3 * o.rms_mm,
+        "RMS {} vs {}",
+        c.rms_mm,
+        o.rms_mm
+    );
+    assert!(
+        c.max_mm <= 0.3 * o.max_mm,
+        "max {} vs {}",
+        c.max_mm,
+        o.max_mm
+    );
     let again = recheck_from_text(&text, &out);
-    assert!((again.rms_mm - c.rms_mm).abs() <= 1e-9, "{again:?} vs {c:?}");
+    assert!(
+        (again.rms_mm - c.rms_mm).abs() <= 1e-9,
+        "{again:?} vs {c:?}"
+    );
 }
 
 /// A 40 mm square at F3000 with a shallow 20° kink in the middle of each side: the corners
@@ -170,6 +202,7 @@ fn sharp_corners_are_reported() {
         out.compensated.rms_mm <= out.original.rms_mm * (1.0 + 1e-9),
         "never worse than the original"
     );
+    assert!(out.compensated.max_mm <= out.original.max_mm * 1.01);
     assert!(
         out.notes.iter().any(|n| n.contains("corner")),
         "{:?}",
@@ -196,7 +229,9 @@ fn steps_beyond_the_axis_limits_are_refused() {
     let out = predistort(&m, &prog, &opts()).unwrap();
     assert_eq!(plain.points.len(), out.points.len());
     let xyz = |p: &[PredistortPoint]| -> Vec<[f64; 3]> {
-        p.iter().map(|p| [p.axes[0], p.axes[1], p.axes[2]]).collect()
+        p.iter()
+            .map(|p| [p.axes[0], p.axes[1], p.axes[2]])
+            .collect()
     };
     let init = junction_limits(&m, 1e-3, [0.0; 3], &xyz(&plain.points));
     let ours = junction_limits(&m, 1e-3, [0.0; 3], &xyz(&out.points));
@@ -204,7 +239,7 @@ fn steps_beyond_the_axis_limits_are_refused() {
     for k in 0..out.points.len() - 1 {
         let need = out.points[k].feed_mm_min.min(out.points[k + 1].feed_mm_min) / 60.0;
         assert!(
-            ours[k].0 >= need.min(init[k].0) * (1.0 - 1e-6),
+            ours[k].0 >= need.min(init[k].0) * (1.0 - JUNCTION_SLACK) * (1.0 - 1e-9),
             "junction {k}: {} mm/s < min({need}, {})",
             ours[k].0,
             init[k].0
@@ -283,7 +318,10 @@ fn feet_agree_with_contour_error() {
             .zip(&orig.report.contour_error)
             .map(|((_, e), c)| ((e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt() - c).abs())
             .fold(0.0, f64::max);
-        println!("largest difference foot distance vs contour_error: {:.3} µm", worst * 1e3);
+        println!(
+            "largest difference foot distance vs contour_error: {:.3} µm",
+            worst * 1e3
+        );
         assert!(worst < 0.5e-3, "{worst}");
     }
 }
