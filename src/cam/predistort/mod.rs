@@ -32,15 +32,17 @@
 //! refused ([`Error::Unsupported`]); blocks of one line that a canned cycle expands take the
 //! feed of the line's first block.
 
+mod limits;
+mod notes;
 mod reference;
-#[cfg(test)]
-mod tests;
 
 use crate::motion::gcode::{Block, Feed, Motion, Pose};
 use crate::motion::{
     self, Kinematics, Machine, Program, contour_error, interpolate, predict_program,
     simulate_machine,
 };
+use limits::{junction_limits, turns_above};
+use notes::{refusal_notes, residual_notes};
 use reference::{Reference, correction, smooth};
 
 /// Longest program (interpolation periods of the original and of every iterate) the
@@ -285,45 +287,6 @@ impl Run<'_> {
     }
 }
 
-/// Speed limit (mm/s) of the junction at the end of each G01 segment of the polyline `start`,
-/// `pts` from the axes' `max_accel` (mm/s²) and the period `period_s` (s), the interpolator's
-/// rule `max_accel·period/|Δ(dq/ds)|` (Zhang & Chen 2025 §2.2 look-ahead as implemented in
-/// [`crate::motion::interpolate`]), with the index of the axis that sets it; the last point
-/// (the end, a stop) gets infinity.
-fn junction_limits(
-    machine: &Machine,
-    period_s: f64,
-    start: [f64; 3],
-    pts: &[[f64; 3]],
-) -> Vec<(f64, usize)> {
-    let m = pts.len();
-    let dir = |k: usize| {
-        let a = if k == 0 { start } else { pts[k - 1] };
-        let d = sub(pts[k], a);
-        let l = norm(d);
-        if l > 0.0 { d.map(|v| v / l) } else { [0.0; 3] }
-    };
-    (0..m)
-        .map(|k| {
-            if k + 1 >= m {
-                return (f64::INFINITY, 0);
-            }
-            let (a, b) = (dir(k), dir(k + 1));
-            let mut best = (f64::INFINITY, 0);
-            for (i, ax) in machine.axes.iter().enumerate().take(3) {
-                let dd = (b[i] - a[i]).abs();
-                if dd > 1e-12 {
-                    let v = ax.limits.max_accel * period_s / dd;
-                    if v < best.0 {
-                        best = (v, i);
-                    }
-                }
-            }
-            best
-        })
-        .collect()
-}
-
 /// Rewrites `program` as G01 points at no less than its feeds so that `machine`'s simulated
 /// servo follows the original path, by iterated pre-distortion of the reference path (module
 /// docs); returns the points with the original's and the compensated contour error (RMS and
@@ -504,27 +467,6 @@ pub fn predistort(
     })
 }
 
-/// Whether the polyline `start`, `pts` turns by more than `rad` (rad) at each point (the last
-/// point, the end, counts as a turn).
-fn turns_above(start: [f64; 3], pts: &[[f64; 3]], rad: f64) -> Vec<bool> {
-    let m = pts.len();
-    (0..m)
-        .map(|k| {
-            if k + 1 >= m {
-                return true;
-            }
-            let a = sub(pts[k], if k == 0 { start } else { pts[k - 1] });
-            let b = sub(pts[k + 1], pts[k]);
-            let (na, nb) = (norm(a), norm(b));
-            if na == 0.0 || nb == 0.0 {
-                return false;
-            }
-            let cos = (a[0] * b[0] + a[1] * b[1] + a[2] * b[2]) / (na * nb);
-            cos.clamp(-1.0, 1.0).acos() > rad
-        })
-        .collect()
-}
-
 /// Points on either side of a refused junction over which the step is tapered.
 const TAPER_POINTS: usize = 8;
 
@@ -579,74 +521,5 @@ fn refuse_sharp_junctions(
     cand.copy_from_slice(cur);
 }
 
-/// One sentence per source line where pre-distortion steps were refused.
-fn refusal_notes(machine: &Machine, lines: &[usize], refused: &[(usize, usize)]) -> Vec<String> {
-    let mut out: Vec<String> = Vec::new();
-    let mut last_line = usize::MAX;
-    for (k, &(count, axis)) in refused.iter().enumerate() {
-        if count == 0 || lines[k] == last_line {
-            continue;
-        }
-        last_line = lines[k];
-        let ax = &machine.axes[axis];
-        out.push(format!(
-            "line {}: sharp corner at full feed: pre-distortion steps refused, since the compensated \
-             path would turn so sharply that axis {} (max_accel {} mm/s²) forces the junction below \
-             the programmed feed; following the path there needs a feed reduction, which the goal forbids",
-            lines[k], ax.name, ax.limits.max_accel
-        ));
-    }
-    out
-}
-
-/// One sentence per source line whose largest contour error the pre-distortion did not bring
-/// below 0.3× the original's there (lines with an original error above 1 µm), at most 20.
-fn residual_notes(
-    orig_ce: &[f64],
-    orig_line: &[u32],
-    comp_ce: &[f64],
-    reference: &Reference,
-) -> Vec<String> {
-    use std::collections::BTreeMap;
-    let mut per: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
-    for (i, e) in orig_ce.iter().enumerate() {
-        let v = per.entry(orig_line[i] as usize).or_default();
-        v.0 = v.0.max(*e);
-    }
-    let last = orig_line.len().saturating_sub(1);
-    for (i, e) in comp_ce.iter().enumerate() {
-        let v = per.entry(orig_line[i.min(last)] as usize).or_default();
-        v.1 = v.1.max(*e);
-    }
-    let last_line = reference.line.last().copied().unwrap_or(0);
-    let corner_lines: std::collections::BTreeSet<usize> = (0..reference.knots.len())
-        .filter(|&k| reference.corner[k])
-        .map(|k| reference.line[k])
-        .collect();
-    let bad: Vec<_> = per
-        .iter()
-        .filter(|(_, (o, c))| *o > 1e-3 && *c > 0.3 * o)
-        .collect();
-    let mut out: Vec<String> = bad
-        .iter()
-        .take(20)
-        .map(|(line, (o, c))| {
-            let why = if **line == last_line {
-                "the final stop: the deceleration there needs a feed reduction, which the goal forbids"
-            } else if corner_lines.contains(line) {
-                "a corner: the servo lag there needs a feed reduction, which the goal forbids"
-            } else {
-                "a speed change or a blend the G01 points cannot reshape at the programmed feed"
-            };
-            format!(
-                "line {line}: contour error {:.1} µm before, {:.1} µm after (max), at {why}",
-                o * 1e3,
-                c * 1e3
-            )
-        })
-        .collect();
-    if bad.len() > 20 {
-        out.push(format!("and {} more lines like these", bad.len() - 20));
-    }
-    out
-}
+#[cfg(test)]
+mod tests;
