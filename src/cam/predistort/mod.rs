@@ -4,7 +4,7 @@
 //!
 //! Method. The original program is interpolated and simulated once ([`predict_program`],
 //! Zhang & Chen 2025 §2–§4); its samples with its corners form the reference polyline
-//! ([`reference`]). Points are chosen on it (one every [`PERIODS_PER_POINT`] periods where the
+//! (module `reference`). Points are chosen on it (one every [`PERIODS_PER_POINT`] periods where the
 //! original cruises, as few as keep chords within [`CHORD_TOL_MM`] where its speed ramps,
 //! since every G01 block starts and ends its jerk-limited ramp at zero acceleration, and
 //! every corner and the end). Then, iteration `k`: the points `q_k` are emitted as a program of
