@@ -1,0 +1,525 @@
+//! Contour-error pre-compensation by pre-distortion of the reference path (issue 14,
+//! `contour: true`): the program is rewritten as G01 points at (at least) the programmed feed
+//! so that the machine's simulated servo follows the *original* path.
+//!
+//! Method. The original program is interpolated and simulated once ([`predict_program`],
+//! Zhang & Chen 2025 §2–§4); its samples with its corners form the reference polyline
+//! (module `reference`). Points are chosen on it (one every [`PERIODS_PER_POINT`] periods where the
+//! original cruises, as few as keep chords within [`CHORD_TOL_MM`] where its speed ramps,
+//! since every G01 block starts and ends its jerk-limited ramp at zero acceleration, and
+//! every corner and the end). Then, iteration `k`: the points `q_k` are emitted as a program of
+//! G01 blocks, interpolated by the service's own interpolator and simulated; the foot of each
+//! actual tool tip on the reference gives the error vector `y_k(s) − r(s)` at arc parameter `s`,
+//! spread onto the points by linear hat weights, and `q_{k+1}(s) = q_k(s) − α·(y_k(s) − r(s))`
+//! (the spatial form of the iterative pre-distortion, Zhang & Chen 2025 §4's contour error as
+//! the measure), smoothed along the path over [`SMOOTH_PERIODS`] periods of travel (not across
+//! corners). Matching by path parameter rather than by time makes the update blind to the
+//! along-path lag, which is no contour error. Feeds are scaled by the length ratio of each
+//! chord (never below the programmed F, never above what `max_vel` allows), so the compensated
+//! program keeps the original timing. A step is taken when it lowers the RMS without raising
+//! the max by more than 1 %; a step that does not is retried once with α halved. Iteration
+//! stops when the RMS improves by less than 1 % (converged), when the halved step fails too,
+//! or after `max_iterations`; the best iterate is returned.
+//!
+//! Axis limits: a point is not moved when moving it would make a junction of the G01
+//! polyline need more than an axis' `max_accel` at the programmed feed (the interpolator would
+//! slow down there, a feed reduction the goal forbids), i.e. where the junction speed limit
+//! `max_accel·period/|Δ(dq/ds)|` (the interpolator's) falls below both the feed and its value
+//! on the undistorted polyline. These refusals happen at sharp corners at full feed, and are
+//! reported in the notes.
+//!
+//! Bad cases: machines with rotary axes (`xyzac_table`) and programs with dwells (G4) are
+//! refused ([`Error::Unsupported`]); blocks of one line that a canned cycle expands take the
+//! feed of the line's first block.
+
+mod limits;
+mod notes;
+mod reference;
+
+use crate::motion::gcode::{Block, Feed, Motion, Pose};
+use crate::motion::{
+    self, Kinematics, Machine, Program, contour_error, interpolate, predict_program,
+    simulate_machine,
+};
+use limits::{junction_limits, turns_above};
+use notes::{refusal_notes, residual_notes};
+use reference::{Reference, correction, smooth};
+
+/// Longest program (interpolation periods of the original and of every iterate) the
+/// pre-distortion runs: 2,000,000 periods, 33 min of machining at the default 1 ms period.
+pub const MAX_PERIODS: usize = 2_000_000;
+
+/// Interpolation periods between two points where the original runs at its cruise speed.
+pub const PERIODS_PER_POINT: usize = 4;
+
+/// Largest distance (mm) of a chord between two points from the original path where the
+/// original ramps its speed (0.5 µm).
+pub const CHORD_TOL_MM: f64 = 5e-4;
+
+/// Fraction by which a step may lower a junction's speed limit from `max_accel` below both
+/// the feed and the undistorted polyline's limit before it is refused (the interpolator then
+/// slows down by at most that fraction for a period there).
+pub const JUNCTION_SLACK: f64 = 0.005;
+
+/// Half-width of the smoothing of the corrections along the path, in interpolation periods
+/// of travel at the programmed feed.
+pub const SMOOTH_PERIODS: f64 = 8.0;
+
+/// Turn of the original path at a point (rad, 5°) from which the corrections are not smoothed
+/// across it.
+pub const BREAK_RAD: f64 = 0.087;
+
+/// Decimals of the returned positions (mm): printed with 4 decimals they reproduce the figures.
+pub const POSITION_DECIMALS: i32 = 4;
+
+/// Decimals of the returned feeds (mm/min): printed with 3 decimals they reproduce the figures.
+pub const FEED_DECIMALS: i32 = 3;
+
+/// What the pre-distortion may do.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PredistortOptions {
+    /// Interpolation period of the simulation, s (1e-5..0.1).
+    pub period_s: f64,
+    /// Most pre-distortion iterations (each one interpolation and simulation), 0..=100.
+    pub max_iterations: usize,
+}
+
+/// One G01 block of the compensated program.
+#[derive(Clone, Debug, PartialEq)]
+pub struct PredistortPoint {
+    /// Machine-axis target X, Y, Z (mm, rounded to [`POSITION_DECIMALS`]), the order of
+    /// `machine.axes`.
+    pub axes: Vec<f64>,
+    /// Feed of the G01 block, mm/min (≥ the programmed feed of `line`; rounded up to
+    /// [`FEED_DECIMALS`]).
+    pub feed_mm_min: f64,
+    /// 1-based source line of the original block this point replaces (part of).
+    pub line: usize,
+}
+
+/// Contour error of a simulated run against the original programmed path.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorStats {
+    /// RMS over the interpolation periods of the distance from the actual tool tip to the
+    /// original path, mm.
+    pub rms_mm: f64,
+    /// Largest such distance, mm.
+    pub max_mm: f64,
+}
+
+/// The compensated program and what it achieves.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Predistorted {
+    /// The G01 points, in order (the machine starts where the original program starts).
+    pub points: Vec<PredistortPoint>,
+    /// Contour error of the original program (as [`predict_program`] reports it).
+    pub original: ErrorStats,
+    /// Contour error of the returned points, interpolated and simulated as the service
+    /// would, measured against the original path.
+    pub compensated: ErrorStats,
+    /// Pre-distortion iterations run (simulations after the first of the undistorted points).
+    pub iterations: usize,
+    /// Sentences on where the pre-distortion could not help, and why.
+    pub notes: Vec<String>,
+}
+
+/// Everything that can go wrong in the pre-distortion.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum Error {
+    /// The program or the machine cannot be simulated (G-code, machine, period, length).
+    #[error(transparent)]
+    Motion(#[from] motion::Error),
+    /// An option is out of its range.
+    #[error("{field}: {message}")]
+    Option {
+        /// The option's name.
+        field: &'static str,
+        /// Its allowed range.
+        message: String,
+    },
+    /// The program or the machine uses something the pre-distortion does not handle yet.
+    #[error("{0}")]
+    Unsupported(String),
+}
+
+/// One simulation of a candidate set of points.
+struct Eval {
+    feeds: Vec<f64>,
+    /// Interpolation periods of the candidate's own command.
+    periods: usize,
+    /// Simulated axes, padded (at rest at the end) to at least the original's periods.
+    actual: Vec<Vec<f64>>,
+    feet: Vec<(f64, [f64; 3])>,
+    /// RMS and max of the foot distances, mm.
+    rms: f64,
+    max: f64,
+}
+
+fn round_to(x: f64, decimals: i32) -> f64 {
+    let s = 10f64.powi(decimals);
+    (x * s).round() / s
+}
+
+fn ceil_to(x: f64, decimals: i32) -> f64 {
+    let s = 10f64.powi(decimals);
+    // Guard against x·s landing a hair above an integer by rounding error.
+    let y = x * s;
+    let r = y.round();
+    if (y - r).abs() <= 1e-9 * y.abs().max(1.0) {
+        r / s
+    } else {
+        y.ceil() / s
+    }
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn norm(a: [f64; 3]) -> f64 {
+    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
+}
+
+/// The G01 program through `pts` from `start` at `feeds` (mm/min); block `k` carries line
+/// `k + 1` so that the interpolation's line tags name the point.
+fn program_of(start: [f64; 3], pts: &[[f64; 3]], feeds: &[f64]) -> Program {
+    let mut blocks = Vec::with_capacity(pts.len());
+    let mut prev = start;
+    for (k, (p, f)) in pts.iter().zip(feeds).enumerate() {
+        blocks.push(Block {
+            line: k + 1,
+            motion: Motion::Linear,
+            start: Pose {
+                xyz: prev,
+                a: 0.0,
+                c: 0.0,
+            },
+            end: Pose {
+                xyz: *p,
+                a: 0.0,
+                c: 0.0,
+            },
+            feed: Feed::PerMinute(*f),
+            rtcp: false,
+        });
+        prev = *p;
+    }
+    Program {
+        blocks,
+        first_a_line: None,
+        first_c_line: None,
+    }
+}
+
+/// The fixed data of one pre-distortion run.
+struct Run<'a> {
+    machine: &'a Machine,
+    period_s: f64,
+    reference: Reference,
+    start: [f64; 3],
+    /// Programmed feed of each point's block, mm/min.
+    base_feed: Vec<f64>,
+    /// Chord length of each point's segment on the undistorted polyline, mm.
+    base_len: Vec<f64>,
+    /// Arc parameter of each point on the reference, mm.
+    sigma: Vec<f64>,
+    /// Periods of the original interpolation.
+    orig_periods: usize,
+}
+
+impl Run<'_> {
+    /// Feeds (mm/min) of the segments ending at `pts`: the programmed feed scaled by the
+    /// chord's length ratio, not below the programmed feed, not above the `max_vel` of any
+    /// axis (unless the programmed feed already is), rounded up to [`FEED_DECIMALS`].
+    fn feeds(&self, pts: &[[f64; 3]]) -> Vec<f64> {
+        let mut prev = self.start;
+        let mut out = Vec::with_capacity(pts.len());
+        for (k, p) in pts.iter().enumerate() {
+            let d = sub(*p, prev);
+            let len = norm(d);
+            let base = self.base_feed[k];
+            let mut f = base;
+            if self.base_len[k] > 0.0 && len > self.base_len[k] {
+                f = base * len / self.base_len[k];
+                for (i, ax) in self.machine.axes.iter().enumerate().take(3) {
+                    if d[i].abs() > 1e-12 {
+                        f = f.min(60.0 * ax.limits.max_vel * len / d[i].abs());
+                    }
+                }
+                f = f.max(base);
+            }
+            out.push(ceil_to(f, FEED_DECIMALS));
+            prev = *p;
+        }
+        out
+    }
+
+    /// Interpolates and simulates the points as the service would.
+    fn evaluate(&self, pts: &[[f64; 3]]) -> Result<Eval, Error> {
+        let feeds = self.feeds(pts);
+        let program = program_of(self.start, pts, &feeds);
+        let mut cmd = interpolate(&program, self.machine, self.period_s, MAX_PERIODS)?;
+        let periods = cmd.t.len();
+        for col in cmd.axes.iter_mut() {
+            let last = *col.last().unwrap_or(&0.0);
+            col.resize(periods.max(self.orig_periods), last);
+        }
+        let actual = simulate_machine(self.machine, &cmd)?;
+        let tips: Vec<[f64; 3]> = (0..actual[0].len())
+            .map(|i| [actual[0][i], actual[1][i], actual[2][i]])
+            .collect();
+        let feet = self.reference.feet(&tips);
+        let sq: Vec<f64> = feet
+            .iter()
+            .map(|(_, e)| e.iter().map(|v| v * v).sum::<f64>())
+            .collect();
+        let rms = (sq.iter().sum::<f64>() / sq.len().max(1) as f64).sqrt();
+        let max = sq.iter().fold(0.0f64, |m, v| m.max(*v)).sqrt();
+        Ok(Eval {
+            feeds,
+            periods,
+            actual,
+            feet,
+            rms,
+            max,
+        })
+    }
+}
+
+/// Rewrites `program` as G01 points at no less than its feeds so that `machine`'s simulated
+/// servo follows the original path, by iterated pre-distortion of the reference path (module
+/// docs); returns the points with the original's and the compensated contour error (RMS and
+/// max distance of the simulated tool tip to the original path, mm, Zhang & Chen 2025 §4.2
+/// eq. 11 by [`contour_error`]) and notes on where it could not help.
+/// Errors: [`Error::Motion`] for programs the motion core refuses, [`Error::Option`] for
+/// options out of range, [`Error::Unsupported`] for rotary axes and dwells.
+pub fn predistort(
+    machine: &Machine,
+    program: &Program,
+    opts: &PredistortOptions,
+) -> Result<Predistorted, Error> {
+    if !(opts.period_s.is_finite() && (1e-5..=0.1).contains(&opts.period_s)) {
+        return Err(Error::Option {
+            field: "period_s",
+            message: format!("must be within 1e-5..0.1 s, got {}", opts.period_s),
+        });
+    }
+    if opts.max_iterations > 100 {
+        return Err(Error::Option {
+            field: "max_iterations",
+            message: format!("must be within 0..=100, got {}", opts.max_iterations),
+        });
+    }
+    if !matches!(machine.kinematics, Kinematics::Xyz) {
+        return Err(Error::Unsupported(
+            "contour pre-distortion handles xyz machines only so far; this machine has rotary axes"
+                .into(),
+        ));
+    }
+    if let Some(b) = program
+        .blocks
+        .iter()
+        .find(|b| matches!(b.motion, Motion::Dwell { .. }))
+    {
+        return Err(Error::Unsupported(format!(
+            "line {}: a dwell (G4) cannot be expressed as G01 points; split the program at the dwell",
+            b.line
+        )));
+    }
+    let orig = predict_program(machine, program, opts.period_s, MAX_PERIODS)?;
+    let original = ErrorStats {
+        rms_mm: orig.report.rms,
+        max_mm: orig.report.max,
+    };
+    let reference = Reference::new(machine, program, &orig.commanded);
+    let idx = reference.choose_points(PERIODS_PER_POINT, CHORD_TOL_MM);
+    let round3 = |p: [f64; 3]| p.map(|v| round_to(v, POSITION_DECIMALS));
+    let start = reference.knots[0];
+    let pts0: Vec<[f64; 3]> = idx[1..]
+        .iter()
+        .map(|&k| round3(reference.knots[k]))
+        .collect();
+    let mut prev = start;
+    let base_len: Vec<f64> = pts0
+        .iter()
+        .map(|p| {
+            let l = norm(sub(*p, prev));
+            prev = *p;
+            l
+        })
+        .collect();
+    let run = Run {
+        machine,
+        period_s: opts.period_s,
+        base_feed: idx[1..].iter().map(|&k| reference.feed_mm_min[k]).collect(),
+        sigma: idx[1..].iter().map(|&k| reference.cum[k]).collect(),
+        base_len,
+        start,
+        orig_periods: orig.commanded.t.len(),
+        reference,
+    };
+    let lines: Vec<usize> = idx[1..].iter().map(|&k| run.reference.line[k]).collect();
+    let init_limits = junction_limits(machine, opts.period_s, start, &pts0);
+    let half_mm: Vec<f64> = run
+        .base_feed
+        .iter()
+        .map(|f| SMOOTH_PERIODS * opts.period_s * f / 60.0)
+        .collect();
+    let breaks = turns_above(start, &pts0, BREAK_RAD);
+    let mut cur = pts0.clone();
+    let mut cur_eval = run.evaluate(&cur)?;
+    let mut alpha = 1.0;
+    let mut iterations = 0;
+    let mut converged = false;
+    let mut refused: Vec<(usize, usize)> = vec![(0, 0); cur.len()];
+    let m = cur.len();
+    while iterations < opts.max_iterations {
+        let corr = smooth(
+            &correction(&run.sigma, &cur_eval.feet),
+            &run.sigma,
+            &half_mm,
+            &breaks,
+        );
+        let mut cand: Vec<[f64; 3]> = (0..m)
+            .map(|k| {
+                if k + 1 == m {
+                    cur[k]
+                } else {
+                    round3(std::array::from_fn(|d| cur[k][d] - alpha * corr[k][d]))
+                }
+            })
+            .collect();
+        refuse_sharp_junctions(&run, &init_limits, &cur, &mut cand, &mut refused);
+        iterations += 1;
+        let e = run.evaluate(&cand)?;
+        if e.rms < cur_eval.rms * (1.0 - 1e-9) && e.max <= cur_eval.max * 1.01 + 1e-7 {
+            let gain = (cur_eval.rms - e.rms) / cur_eval.rms;
+            cur = cand;
+            cur_eval = e;
+            if gain < 0.01 {
+                converged = true;
+                break;
+            }
+        } else {
+            alpha *= 0.5;
+            if alpha < 0.5 {
+                converged = true;
+                break;
+            }
+        }
+    }
+    // The official figure: the motion core's contour error of the best iterate's actual
+    // against the original commanded path (padded at rest to the same length).
+    let n = cur_eval.actual[0].len();
+    let orig_cmd: Vec<Vec<f64>> = orig
+        .commanded
+        .axes
+        .iter()
+        .map(|c| {
+            let mut c = c.clone();
+            let last = *c.last().unwrap_or(&0.0);
+            c.resize(n, last);
+            c
+        })
+        .collect();
+    let report = contour_error(
+        &machine.kinematics,
+        &orig_cmd,
+        &cur_eval.actual,
+        &orig.commanded.corners,
+    );
+    let compensated = ErrorStats {
+        rms_mm: report.rms,
+        max_mm: report.max,
+    };
+    let mut notes = Vec::new();
+    if !converged && opts.max_iterations > 0 {
+        notes.push(format!(
+            "stopped after max_iterations = {} before the RMS stopped improving; more iterations may lower it further",
+            opts.max_iterations
+        ));
+    }
+    notes.extend(refusal_notes(machine, &lines, &refused));
+    notes.extend(residual_notes(
+        &orig.report.contour_error,
+        &orig.commanded.line,
+        &report.contour_error,
+        &run.reference,
+    ));
+    let points = cur
+        .iter()
+        .zip(&cur_eval.feeds)
+        .zip(&lines)
+        .map(|((p, f), l)| PredistortPoint {
+            axes: p.to_vec(),
+            feed_mm_min: *f,
+            line: *l,
+        })
+        .collect();
+    debug_assert!(cur_eval.periods > 0);
+    Ok(Predistorted {
+        points,
+        original,
+        compensated,
+        iterations,
+        notes,
+    })
+}
+
+/// Points on either side of a refused junction over which the step is tapered.
+const TAPER_POINTS: usize = 8;
+
+/// Shrinks the step `cur → cand` around every junction whose speed limit from `max_accel`
+/// falls below both the feed and the undistorted polyline's limit `init` (by more than
+/// [`JUNCTION_SLACK`]): the step is taken back at the junction and tapered in linearly over
+/// [`TAPER_POINTS`] points on either side, so that no new kink appears beside it. Counts the
+/// refusals per point (with the limiting axis) in `refused`; after 40 passes that still find
+/// such junctions the whole step is taken back.
+fn refuse_sharp_junctions(
+    run: &Run,
+    init: &[(f64, usize)],
+    cur: &[[f64; 3]],
+    cand: &mut [[f64; 3]],
+    refused: &mut [(usize, usize)],
+) {
+    let m = cand.len();
+    let step: Vec<[f64; 3]> = (0..m).map(|k| sub(cand[k], cur[k])).collect();
+    let mut w = vec![1.0f64; m];
+    for _pass in 0..40 {
+        let feeds = run.feeds(cand);
+        let lim = junction_limits(run.machine, run.period_s, run.start, cand);
+        let mut any = false;
+        for k in 0..m.saturating_sub(1) {
+            let need = feeds[k].min(feeds[k + 1]) / 60.0;
+            let floor = need.min(init[k].0) * (1.0 - JUNCTION_SLACK);
+            if lim[k].0 < floor {
+                any = true;
+                refused[k].0 += 1;
+                refused[k].1 = lim[k].1;
+                let lo = k.saturating_sub(TAPER_POINTS);
+                let hi = (k + 1 + TAPER_POINTS).min(m - 1);
+                // Refused again: halve the whole window's step as well.
+                let again = w[k] == 0.0;
+                for (j, wj) in w.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    let d = if j <= k { k - j } else { j - k - 1 };
+                    *wj = wj.min(d as f64 / (TAPER_POINTS + 1) as f64);
+                    if again {
+                        *wj *= 0.5;
+                    }
+                }
+            }
+        }
+        if !any {
+            return;
+        }
+        for k in 0..m {
+            cand[k] =
+                std::array::from_fn(|d| round_to(cur[k][d] + w[k] * step[k][d], POSITION_DECIMALS));
+        }
+    }
+    cand.copy_from_slice(cur);
+}
+
+#[cfg(test)]
+mod tests;

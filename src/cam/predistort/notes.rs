@@ -1,0 +1,80 @@
+//! The notes of a pre-distortion: sentences on where it could not help, and why.
+
+use super::reference::Reference;
+use crate::motion::Machine;
+
+/// One sentence per source line where pre-distortion steps were refused.
+pub(super) fn refusal_notes(
+    machine: &Machine,
+    lines: &[usize],
+    refused: &[(usize, usize)],
+) -> Vec<String> {
+    let mut out: Vec<String> = Vec::new();
+    let mut last_line = usize::MAX;
+    for (k, &(count, axis)) in refused.iter().enumerate() {
+        if count == 0 || lines[k] == last_line {
+            continue;
+        }
+        last_line = lines[k];
+        let ax = &machine.axes[axis];
+        out.push(format!(
+            "line {}: sharp corner at full feed: pre-distortion steps refused, since the compensated \
+             path would turn so sharply that axis {} (max_accel {} mm/s²) forces the junction below \
+             the programmed feed; following the path there needs a feed reduction, which the goal forbids",
+            lines[k], ax.name, ax.limits.max_accel
+        ));
+    }
+    out
+}
+
+/// One sentence per source line whose largest contour error the pre-distortion did not bring
+/// below 0.3× the original's there (lines with an original error above 1 µm), at most 20.
+pub(super) fn residual_notes(
+    orig_ce: &[f64],
+    orig_line: &[u32],
+    comp_ce: &[f64],
+    reference: &Reference,
+) -> Vec<String> {
+    use std::collections::BTreeMap;
+    let mut per: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
+    for (i, e) in orig_ce.iter().enumerate() {
+        let v = per.entry(orig_line[i] as usize).or_default();
+        v.0 = v.0.max(*e);
+    }
+    let last = orig_line.len().saturating_sub(1);
+    for (i, e) in comp_ce.iter().enumerate() {
+        let v = per.entry(orig_line[i.min(last)] as usize).or_default();
+        v.1 = v.1.max(*e);
+    }
+    let last_line = reference.line.last().copied().unwrap_or(0);
+    let corner_lines: std::collections::BTreeSet<usize> = (0..reference.knots.len())
+        .filter(|&k| reference.corner[k])
+        .map(|k| reference.line[k])
+        .collect();
+    let bad: Vec<_> = per
+        .iter()
+        .filter(|(_, (o, c))| *o > 1e-3 && *c > 0.3 * o)
+        .collect();
+    let mut out: Vec<String> = bad
+        .iter()
+        .take(20)
+        .map(|(line, (o, c))| {
+            let why = if **line == last_line {
+                "the final stop: the deceleration there needs a feed reduction, which the goal forbids"
+            } else if corner_lines.contains(line) {
+                "a corner: the servo lag there needs a feed reduction, which the goal forbids"
+            } else {
+                "a speed change or a blend the G01 points cannot reshape at the programmed feed"
+            };
+            format!(
+                "line {line}: contour error {:.1} µm before, {:.1} µm after (max), at {why}",
+                o * 1e3,
+                c * 1e3
+            )
+        })
+        .collect();
+    if bad.len() > 20 {
+        out.push(format!("and {} more lines like these", bad.len() - 20));
+    }
+    out
+}

@@ -1,0 +1,327 @@
+//! Unit tests of `crate::cam::predistort`: circles, a free-form program, a square with sharp
+//! corners (the case it cannot help), the axis-limit refusal and the option checks.
+
+use super::*;
+use crate::motion::{gcode, interpolate};
+use serde_json::json;
+
+/// The demo machine's cascade (kv 30 1/s, kff 0.6, PI velocity loop, 0.5 ms current loop) on
+/// X, Y, Z with the default limits (500 mm/s, 5 m/s², 100 m/s³).
+fn machine() -> Machine {
+    let ax = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    Machine::from_json(&json!({"kinematics": "xyz", "axes": {"X": ax, "Y": ax, "Z": ax}})).unwrap()
+}
+
+fn opts() -> PredistortOptions {
+    PredistortOptions {
+        period_s: 1e-3,
+        max_iterations: 30,
+    }
+}
+
+/// Two full CCW circles of radius `r` through (0, 15) with tangent lead-in (from the machine's
+/// start at the origin) and lead-out lines of 15 mm, so the circle runs at the programmed feed.
+fn circle_program(r: f64, feed: f64) -> String {
+    format!(
+        "G90 G17 G94\nG1 X0 Y15 F{feed}\nG3 X0 Y15 I{m} J0\nG3 X0 Y15 I{m} J0\nG1 Y30\n",
+        m = -r
+    )
+}
+
+/// A free-form CAM-like program: a G01 polyline of 0.25 mm chords along the smooth curve
+/// y = 6 sin(2πx/60) + 1.5 sin(2πx/23) for x in 0..120 mm (smallest radius of curvature
+/// 5.6 mm), entered by a 10 mm tangent lead-in
+/// from the machine's start at the origin.
+fn free_form_program(feed: f64) -> String {
+    let tau = std::f64::consts::TAU;
+    let f = |x: f64| 6.0 * (tau * x / 60.0).sin() + 1.5 * (tau * x / 23.0).sin();
+    let slope = 6.0 * tau / 60.0 + 1.5 * tau / 23.0;
+    let n = (1.0 + slope * slope).sqrt();
+    let (x0, y0) = (10.0 / n, 10.0 * slope / n);
+    let mut p = format!("G90 G17 G94\nG1 X{x0:.4} Y{y0:.4} F{feed}\n");
+    for k in 1..=480 {
+        let x = k as f64 * 0.25;
+        p += &format!("G1 X{:.4} Y{:.4}\n", x0 + x, y0 + f(x));
+    }
+    p
+}
+
+/// Interpolation periods of the returned points, read back as the service would.
+fn periods_of(m: &Machine, out: &Predistorted) -> usize {
+    let mut text = String::from("G90 G94\n");
+    for p in &out.points {
+        text += &format!(
+            "G1 X{:.4} Y{:.4} Z{:.4} F{:.3}\n",
+            p.axes[0], p.axes[1], p.axes[2], p.feed_mm_min
+        );
+    }
+    let prog = gcode::parse(&text).unwrap();
+    interpolate(&prog, m, 1e-3, MAX_PERIODS).unwrap().t.len()
+}
+
+/// Runs `text`, prints the figures beside the goals, checks the feeds and the duration, and
+/// returns the result.
+fn run_and_report(name: &str, text: &str) -> Predistorted {
+    let m = machine();
+    let prog = gcode::parse(text).unwrap();
+    let out = predistort(&m, &prog, &opts()).unwrap();
+    let (o, c) = (out.original, out.compensated);
+    println!(
+        "{name}: original RMS {:.2} µm max {:.2} µm; ours RMS {:.2} µm max {:.2} µm; \
+         ratio RMS {:.3} (goal ≤ 0.1, gate ≤ 0.3), max {:.3} (goal ≤ 0.3); {} iterations, {} points",
+        o.rms_mm * 1e3,
+        o.max_mm * 1e3,
+        c.rms_mm * 1e3,
+        c.max_mm * 1e3,
+        c.rms_mm / o.rms_mm,
+        c.max_mm / o.max_mm,
+        out.iterations,
+        out.points.len()
+    );
+    for n in &out.notes {
+        println!("  note: {n}");
+    }
+    // No point slower than its original block's programmed feed.
+    for p in &out.points {
+        let b = prog.blocks.iter().find(|b| b.line == p.line).unwrap();
+        let f = match b.feed {
+            gcode::Feed::PerMinute(f) => f,
+            gcode::Feed::Rapid => m.rapid_mm_min,
+            gcode::Feed::InverseTime(_) => unreachable!(),
+        };
+        assert!(
+            p.feed_mm_min >= f,
+            "line {}: {} < {f}",
+            p.line,
+            p.feed_mm_min
+        );
+    }
+    // The returned program, read back from text, takes no longer than the original.
+    let orig_periods = interpolate(&prog, &m, 1e-3, MAX_PERIODS).unwrap().t.len();
+    let ours = periods_of(&m, &out);
+    println!("  periods: original {orig_periods}, compensated {ours}");
+    assert!(ours <= orig_periods + 3, "{ours} > {orig_periods} + 3");
+    out
+}
+
+/// Re-checks the figure from the text the route would emit: parse, interpolate, simulate and
+/// measure against the original path, all through the motion core.
+fn recheck_from_text(text: &str, out: &Predistorted) -> ErrorStats {
+    let m = machine();
+    let orig = predict_program(&m, &gcode::parse(text).unwrap(), 1e-3, MAX_PERIODS).unwrap();
+    let mut g = String::from("G90 G94\n");
+    for p in &out.points {
+        g += &format!(
+            "G1 X{:.4} Y{:.4} Z{:.4} F{:.3}\n",
+            p.axes[0], p.axes[1], p.axes[2], p.feed_mm_min
+        );
+    }
+    let mut cmd = interpolate(&gcode::parse(&g).unwrap(), &m, 1e-3, MAX_PERIODS).unwrap();
+    let n = cmd.t.len().max(orig.commanded.t.len());
+    let pad = |cols: &mut Vec<Vec<f64>>| {
+        for c in cols.iter_mut() {
+            let l = *c.last().unwrap();
+            c.resize(n, l);
+        }
+    };
+    pad(&mut cmd.axes);
+    let actual = simulate_machine(&m, &cmd).unwrap();
+    let mut oc = orig.commanded.axes.clone();
+    pad(&mut oc);
+    let r = contour_error(&m.kinematics, &oc, &actual, &orig.commanded.corners);
+    ErrorStats {
+        rms_mm: r.rms,
+        max_mm: r.max,
+    }
+}
+
+#[test]
+fn circles_meet_the_gate() {
+    for (r, feed) in [
+        (10.0, 3000.0),
+        (25.0, 2000.0),
+        (50.0, 1000.0),
+        (50.0, 3000.0),
+    ] {
+        let text = circle_program(r, feed);
+        let out = run_and_report(&format!("circle R{r} F{feed}"), &text);
+        let (o, c) = (out.original, out.compensated);
+        assert!(o.max_mm > 1e-3, "the original must have an error to remove");
+        assert!(
+            c.rms_mm <= 0.3 * o.rms_mm,
+            "RMS {} vs {}",
+            c.rms_mm,
+            o.rms_mm
+        );
+        assert!(
+            c.max_mm <= 0.3 * o.max_mm,
+            "max {} vs {}",
+            c.max_mm,
+            o.max_mm
+        );
+        let again = recheck_from_text(&text, &out);
+        assert!(
+            (again.rms_mm - c.rms_mm).abs() <= 1e-9 && (again.max_mm - c.max_mm).abs() <= 1e-9,
+            "{again:?} vs {c:?}"
+        );
+    }
+}
+
+#[test]
+fn free_form_meets_the_gate() {
+    let text = free_form_program(2500.0);
+    let out = run_and_report("free-form G01 F2500", &text);
+    let (o, c) = (out.original, out.compensated);
+    assert!(o.max_mm > 1e-3);
+    assert!(
+        c.rms_mm <= 0.3 * o.rms_mm,
+        "RMS {} vs {}",
+        c.rms_mm,
+        o.rms_mm
+    );
+    assert!(
+        c.max_mm <= 0.3 * o.max_mm,
+        "max {} vs {}",
+        c.max_mm,
+        o.max_mm
+    );
+    let again = recheck_from_text(&text, &out);
+    assert!(
+        (again.rms_mm - c.rms_mm).abs() <= 1e-9,
+        "{again:?} vs {c:?}"
+    );
+}
+
+/// A 40 mm square at F3000 with a shallow 20° kink in the middle of each side: the corners
+/// cannot be followed without a feed reduction; the result says so.
+#[test]
+fn sharp_corners_are_reported() {
+    let text = "G90 G17 G94\nG0 X0 Y0\nG1 X20 Y3.5 F3000\nG1 X40 Y0\nG1 Y40\nG1 X0\nG1 Y0\n";
+    let out = run_and_report("square with kinks F3000", text);
+    assert!(
+        out.compensated.rms_mm <= out.original.rms_mm * (1.0 + 1e-9),
+        "never worse than the original"
+    );
+    assert!(out.compensated.max_mm <= out.original.max_mm * 1.01);
+    assert!(
+        out.notes.iter().any(|n| n.contains("corner")),
+        "{:?}",
+        out.notes
+    );
+}
+
+/// No junction of the returned polyline needs a slow-down from `max_accel` that the
+/// undistorted polyline (max_iterations = 0) did not have.
+#[test]
+fn steps_beyond_the_axis_limits_are_refused() {
+    let m = machine();
+    let text = "G90 G17 G94\nG0 X0 Y0\nG1 X20 Y3.5 F3000\nG1 X40 Y0\nG1 Y40\nG1 X0\nG1 Y0\n";
+    let prog = gcode::parse(text).unwrap();
+    let plain = predistort(
+        &m,
+        &prog,
+        &PredistortOptions {
+            period_s: 1e-3,
+            max_iterations: 0,
+        },
+    )
+    .unwrap();
+    let out = predistort(&m, &prog, &opts()).unwrap();
+    assert_eq!(plain.points.len(), out.points.len());
+    let xyz = |p: &[PredistortPoint]| -> Vec<[f64; 3]> {
+        p.iter()
+            .map(|p| [p.axes[0], p.axes[1], p.axes[2]])
+            .collect()
+    };
+    let init = junction_limits(&m, 1e-3, [0.0; 3], &xyz(&plain.points));
+    let ours = junction_limits(&m, 1e-3, [0.0; 3], &xyz(&out.points));
+    let mut moved = 0;
+    for k in 0..out.points.len() - 1 {
+        let need = out.points[k].feed_mm_min.min(out.points[k + 1].feed_mm_min) / 60.0;
+        assert!(
+            ours[k].0 >= need.min(init[k].0) * (1.0 - JUNCTION_SLACK) * (1.0 - 1e-9),
+            "junction {k}: {} mm/s < min({need}, {})",
+            ours[k].0,
+            init[k].0
+        );
+        if out.points[k] != plain.points[k] {
+            moved += 1;
+        }
+    }
+    println!(
+        "moved {moved} of {} points; notes: {:?}",
+        out.points.len(),
+        out.notes
+    );
+    assert!(moved > 0);
+    assert!(out.notes.iter().any(|n| n.contains("refused")));
+}
+
+#[test]
+fn options_rotary_machines_and_dwells_are_refused() {
+    let m = machine();
+    let prog = gcode::parse(&circle_program(10.0, 1000.0)).unwrap();
+    let bad = PredistortOptions {
+        period_s: 0.0,
+        max_iterations: 3,
+    };
+    assert!(matches!(
+        predistort(&m, &prog, &bad),
+        Err(Error::Option {
+            field: "period_s",
+            ..
+        })
+    ));
+    let bad = PredistortOptions {
+        period_s: 1e-3,
+        max_iterations: 1000,
+    };
+    assert!(matches!(
+        predistort(&m, &prog, &bad),
+        Err(Error::Option {
+            field: "max_iterations",
+            ..
+        })
+    ));
+    let dwell = gcode::parse("G0 X1\nG4 P0.5\nG1 X2 F100\n").unwrap();
+    let e = predistort(&m, &dwell, &opts()).unwrap_err();
+    assert!(e.to_string().contains("line 2"), "{e}");
+}
+
+#[test]
+fn correction_spreads_and_fills() {
+    let sigma = [0.0, 1.0, 2.0, 3.0];
+    let feet = vec![(0.5, [2.0, 0.0, 0.0]), (3.0, [0.0, 4.0, 0.0])];
+    let c = correction(&sigma, &feet);
+    assert_eq!(c[0], [2.0, 0.0, 0.0]);
+    assert_eq!(c[1], [2.0, 0.0, 0.0]);
+    // Point 2 got no weight: halfway between its neighbours.
+    assert_eq!(c[2], [1.0, 2.0, 0.0]);
+    assert_eq!(c[3], [0.0, 4.0, 0.0]);
+}
+
+/// Oracle: the foot-point distances on the reference polyline agree with the motion core's
+/// contour error (spline, windowed search) on the original run.
+#[test]
+fn feet_agree_with_contour_error() {
+    let m = machine();
+    for text in [circle_program(10.0, 3000.0), free_form_program(2500.0)] {
+        let prog = gcode::parse(&text).unwrap();
+        let orig = predict_program(&m, &prog, 1e-3, MAX_PERIODS).unwrap();
+        let r = Reference::new(&m, &prog, &orig.commanded);
+        let tips: Vec<[f64; 3]> = (0..orig.actual[0].len())
+            .map(|i| [orig.actual[0][i], orig.actual[1][i], orig.actual[2][i]])
+            .collect();
+        let feet = r.feet(&tips);
+        let worst = feet
+            .iter()
+            .zip(&orig.report.contour_error)
+            .map(|((_, e), c)| ((e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt() - c).abs())
+            .fold(0.0, f64::max);
+        println!(
+            "largest difference foot distance vs contour_error: {:.3} µm",
+            worst * 1e3
+        );
+        assert!(worst < 0.5e-3, "{worst}");
+    }
+}
