@@ -21,7 +21,7 @@ mod tests;
 pub use emit::{Emitter, LineInfo, LinePlan, decimals, format_number, rewrite, rounding_mm};
 pub use error::Error;
 pub use field::ErrorField;
-pub use paths::{Shifter, arc_point, arc_points, linear_points};
+pub use paths::{CompensatedArc, Shifter, arc_point, arc_points, linear_points};
 pub use points::{CompensatedPoints, compensate_points, points_from_csv, points_to_csv};
 pub use program::{
     Compensated, DEFAULT_TOLERANCE_MM, MAX_OUTPUT_BLOCKS, MAX_TOLERANCE_MM, MIN_TOLERANCE_MM,

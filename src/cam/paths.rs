@@ -153,9 +153,24 @@ pub fn arc_point(
     p
 }
 
-/// The compensated arc `block`: `Ok((end, centre))` (mm) when e is constant along it within
-/// `tol_mm` (the arc is kept, shifted by the mean of e at its ends), else `Err(points)`: G1
-/// points (mm) within `tol_mm` of the compensated arc (pieces of at most 22.5°, bisected).
+/// A compensated arc: kept and shifted, or G1 points.
+#[derive(Clone, Debug, PartialEq)]
+pub enum CompensatedArc {
+    /// e is constant along the arc within the tolerance: the arc shifted by the mean of e
+    /// at its ends.
+    Shifted {
+        /// End point, machine frame, mm.
+        end_mm: [f64; 3],
+        /// Centre, machine frame, mm.
+        centre_mm: [f64; 3],
+    },
+    /// G1 points (machine frame, mm) within the tolerance of the compensated arc.
+    Points(Vec<[f64; 3]>),
+}
+
+/// The compensated arc `block`: [`CompensatedArc::Shifted`] when e is constant along it within
+/// `tol_mm`, else [`CompensatedArc::Points`] within `tol_mm` of the compensated arc (pieces of
+/// at most 22.5°, bisected).
 pub fn arc_points(
     sh: &mut Shifter<'_>,
     line: usize,
@@ -164,7 +179,7 @@ pub fn arc_points(
     center: [f64; 3],
     sweep_rad: f64,
     tol_mm: f64,
-) -> Result<([f64; 3], [f64; 3]), Vec<[f64; 3]>> {
+) -> CompensatedArc {
     let x = |t: f64| arc_point(block, plane, center, sweep_rad, t);
     let e0 = sh.field.error_at(block.start.xyz);
     let e1 = sh.field.error_at(block.end.xyz);
@@ -176,7 +191,10 @@ pub fn arc_points(
     });
     if constant {
         let end = sh.compensate(line, block.end.xyz);
-        return Ok((end, sub(center, mean)));
+        return CompensatedArc::Shifted {
+            end_mm: end,
+            centre_mm: sub(center, mean),
+        };
     }
     let pieces = ((sweep_rad.abs() / (std::f64::consts::PI / 8.0)).ceil() as usize).max(1);
     let mut out = Vec::new();
@@ -187,5 +205,5 @@ pub fn arc_points(
         piece(sh, &x, prev, next, tol_mm, 0, &mut out);
         prev = next;
     }
-    Err(written(sh, line, &x, out, block.end.xyz))
+    CompensatedArc::Points(written(sh, line, &x, out, block.end.xyz))
 }

@@ -20,7 +20,7 @@
 use super::emit::{Emitter, LineInfo, LinePlan, rounding_mm};
 use super::error::Error;
 use super::field::ErrorField;
-use super::paths::{Shifter, arc_points, linear_points};
+use super::paths::{CompensatedArc, Shifter, arc_points, linear_points};
 use crate::motion::ReadOptions;
 use crate::motion::gcode::{LineFrame, parse_traced};
 use crate::motion::program::{Block, Feed, Motion};
@@ -279,12 +279,12 @@ fn plan_line(
             center,
             sweep_rad,
         } => match arc_points(shifter, line, block, plane, center, sweep_rad, tol) {
-            Ok((end_mm, centre_mm)) => LinePlan::Arc {
+            CompensatedArc::Shifted { end_mm, centre_mm } => LinePlan::Arc {
                 end_mm,
                 centre_mm,
                 plane,
             },
-            Err(pts) => {
+            CompensatedArc::Points(pts) => {
                 notes.split.push(line);
                 let feeds = inverse_time_feeds(block, &pts, shifter.comp(block.start.xyz));
                 LinePlan::Points {
