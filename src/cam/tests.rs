@@ -365,3 +365,50 @@ fn rapids_are_not_split() {
     let out = compensate_program(src, &ReadOptions::default(), &curved(), 0.001).unwrap();
     assert_eq!(out.blocks, 2);
 }
+
+#[test]
+fn out_of_box_points_are_named() {
+    let f = Field {
+        max: [50.0, 1e6, 1e6],
+        ..constant([0.01, 0.0, 0.0])
+    };
+    let src = "G0 X10 Y0 Z0\nG0 X100\nG0 X20\n";
+    let out = compensate_program(src, &ReadOptions::default(), &f, 0.001).unwrap();
+    let w = out
+        .warnings
+        .iter()
+        .find(|w| w.contains("outside the volumetric map's box"))
+        .expect("warning");
+    assert!(w.starts_with("lines 2:"), "{w}");
+}
+
+#[test]
+fn inverse_time_splits_carry_their_own_feed() {
+    // G93: the block takes 1/F min; split pieces keep the block's time in total.
+    let src = "G0 X0 Y0 Z0\nG93 G1 X400. F2.\nG94\n";
+    let f = curved();
+    let out = compensate_program(src, &ReadOptions::default(), &f, 0.001).unwrap();
+    let lines: Vec<&str> = out.gcode.lines().collect();
+    assert!(lines.len() > 4, "{}", out.gcode);
+    let minutes: f64 = lines[1..lines.len() - 1]
+        .iter()
+        .map(|l| {
+            let f: f64 = l.split('F').nth(1).unwrap().parse().unwrap();
+            1.0 / f
+        })
+        .sum();
+    assert!(
+        (minutes - 0.5).abs() < 1e-4,
+        "{minutes} min for the split block"
+    );
+}
+
+#[test]
+fn incremental_cycles_are_copied() {
+    let src = "G90 G0 X0 Y0 Z20\nG91 G81 X10. Y10. Z-5. R-18. F100\nX10.\nG80 G90\n";
+    let out = compensate_program(src, &ReadOptions::default(), &curved(), 0.001).unwrap();
+    let lines: Vec<&str> = out.gcode.lines().collect();
+    assert_eq!(lines[1], "G91 G81 X10. Y10. Z-5. R-18. F100");
+    assert_eq!(lines[2], "X10.");
+    assert!(out.warnings.iter().any(|w| w.contains("G91")));
+}
