@@ -117,8 +117,8 @@ fn wants_text(headers: &HeaderMap) -> bool {
         .is_some_and(|a| a.contains("text/plain"))
 }
 
-/// The program with the warnings as `( )` comment lines after a leading `%` and program
-/// number (Fanuc-style controls read comments anywhere).
+/// The program with the warnings as `( )` comment lines (ASCII) after a leading `%` and
+/// program number (Fanuc-style controls read comments anywhere).
 fn with_warning_comments(gcode: &str, warnings: &[String]) -> String {
     let eol = if gcode.contains("\r\n") { "\r\n" } else { "\n" };
     let mut lines: Vec<&str> = gcode.lines().collect();
@@ -136,14 +136,20 @@ fn with_warning_comments(gcode: &str, warnings: &[String]) -> String {
         warnings.len()
     )];
     for w in warnings {
+        // Controls read ASCII comments: brackets for parentheses, plain words for symbols.
         let clean: String = w
             .chars()
             .map(|c| match c {
-                '(' => '[',
-                ')' => ']',
-                ';' => ',',
-                c if c.is_control() => ' ',
-                c => c,
+                '(' => "[".to_string(),
+                ')' => "]".to_string(),
+                ';' => ",".to_string(),
+                'µ' => "u".to_string(),
+                '±' => "+/-".to_string(),
+                '−' => "-".to_string(),
+                '×' => "x".to_string(),
+                c if c.is_control() => " ".to_string(),
+                c if !c.is_ascii() => "?".to_string(),
+                c => c.to_string(),
             })
             .collect();
         comments.push(format!("({clean})"));

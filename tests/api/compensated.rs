@@ -274,6 +274,7 @@ async fn text_plain_and_points(app: TestApp) {
     assert_eq!(n, warnings.len());
     assert!(n > 0);
     let text = r.text().await.unwrap();
+    assert!(text.is_ascii(), "controls read ASCII: {text}");
     let lines: Vec<&str> = text.lines().collect();
     assert_eq!(lines[0], "%");
     assert!(lines[1].starts_with("O2041"));
