@@ -19,7 +19,7 @@
 //! - [`geometry`]: cubic splines, height surfaces, iso-parametric path sampling, exact ball-end step error (Zhang et al. 2023) and its network features.
 //! - [`nn`]: small dense networks (MLP): z-score, dropout, SGD-momentum/Adam, early stopping, binary model format (Zhang et al. 2023; Xiang et al. 2019; Wang, Dai & Hong).
 //! - [`volumetric`]: volumetric error maps (Xiang et al. 2019 and Wang, Dai & Hong): trilinear table, 3-8-3 network, ISO 230-1 rigid-body model, hybrid, auto by CV, compensation tables.
-//! - [`cam`]: compensated programs for CAM post-processors: contour pre-distortion (issue 14).
+//! - [`cam`]: compensated programs for CAM post-processors: volumetric pre-compensation of G-code and CL points, re-emission keeping the post's structure, contour pre-distortion.
 //! - [`motion`]: contour error from G-code (Zhang & Chen 2025): G-code reader, RTCP interpolation, kinematics, servo cascade, contour error.
 //! - [`signal`]: machining-error decomposition (Chen et al. 2024): VMD, EMD, wavelets, Whittaker smoothing, screening, coarse-to-fine in 1-D and on 2-D grids.
 //! - [`compensation`]: normal-offset compensation (Chen et al. 2024): compensated points, reconstructed compensated surface, compensated CL points.

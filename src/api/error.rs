@@ -5,7 +5,9 @@
 use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
-use crate::{codec, compensation, gap, geometry, jobs, motion, nn, signal, step_error, volumetric};
+use crate::{
+    cam, codec, compensation, gap, geometry, jobs, motion, nn, signal, step_error, volumetric,
+};
 
 /// An error answered to an HTTP client. 4xx variants carry a sentence saying what to fix;
 /// `Internal` carries the cause for the log only (the body stays opaque).
@@ -318,6 +320,21 @@ impl From<motion::Error> for ApiError {
             | E::InvalidParameter { .. }
             | E::EmptyCommand
             | E::NonFiniteCommand { .. } => ApiError::bad_request(e.to_string()),
+        }
+    }
+}
+
+/// A program the reader refuses is the reader's answer (422 naming line and word); a bad
+/// option or point is 400; an answer too long to write is 422.
+impl From<cam::Error> for ApiError {
+    fn from(e: cam::Error) -> Self {
+        use cam::Error as E;
+        match e {
+            E::Read(inner) => inner.into(),
+            E::Tolerance { .. } | E::NonFinite { .. } | E::Empty { .. } | E::Csv { .. } => {
+                ApiError::bad_request(e.to_string())
+            }
+            E::TooLong { .. } => ApiError::unprocessable(e.to_string()),
         }
     }
 }

@@ -6,6 +6,7 @@
 //! the `.route("...")` literals of `src/api/*.rs` and compares them with `openapi.yaml`.
 
 pub mod auth;
+pub mod compensated;
 pub mod compensation;
 pub mod contour;
 pub mod decomposition;
@@ -73,6 +74,7 @@ pub fn router(state: AppState) -> Router {
         .merge(step_error::routes())
         .merge(decomposition::routes())
         .merge(compensation::routes())
+        .merge(compensated::routes())
         .fallback(middleware::fallback)
         // Innermost first: auth sees only routed requests; the problem+json rewrite covers
         // framework rejections (405, path errors); metrics see the final status.

@@ -1,7 +1,33 @@
-//! Compensated programs for CAM post-processors (issue 14): contour-error pre-compensation
-//! by pre-distortion of the reference path (module `predistort`, function [`predistort()`]).
-pub mod predistort;
+//! Compensated programs for CAM post-processors (CONTRACT v1.1 "Compensated programs"):
+//! volumetric pre-compensation of a G-code program against the machine's error map, written
+//! back keeping the post's structure, and of plain CL points.
+//!
+//! Files: `field` (the error field: the volumetric map), `paths` (compensated lines and arcs,
+//! split into G1 points within the tolerance), `emit` (re-emission: axis words replaced in
+//! the program's own units and G90/G91 mode, a motion line replaceable by G1 points),
+//! `program` (the whole program), `points` (the points form, JSON or CSV), `error`.
+//! `predistort` (contour-error pre-compensation) rewrites the program as G1 points that the
+//! emitter writes through [`LinePlan::Points`].
 
+mod emit;
+mod error;
+mod field;
+mod paths;
+mod points;
+mod program;
+pub mod predistort;
+#[cfg(test)]
+mod tests;
+
+pub use emit::{Emitter, LineInfo, LinePlan, decimals, format_number, rewrite, rounding_mm};
+pub use error::Error;
+pub use field::ErrorField;
+pub use paths::{CompensatedArc, Shifter, arc_point, arc_points, linear_points};
+pub use points::{CompensatedPoints, compensate_points, points_from_csv, points_to_csv};
 pub use predistort::{
-    Error, ErrorStats, PredistortOptions, PredistortPoint, Predistorted, predistort,
+    ErrorStats, PredistortOptions, PredistortPoint, Predistorted, predistort,
+};
+pub use program::{
+    Compensated, DEFAULT_TOLERANCE_MM, MAX_OUTPUT_BLOCKS, MAX_TOLERANCE_MM, MIN_TOLERANCE_MM,
+    check_tolerance, compensate_program,
 };

@@ -8,6 +8,7 @@
 #[macro_use]
 mod helpers;
 
+mod compensated;
 mod contour;
 mod decomposition;
 mod gap;

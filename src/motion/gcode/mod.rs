@@ -4,7 +4,8 @@
 //! Files: `lexer` (comments, words), `reader` (modal state, what a line asks for), `moves`
 //! (blocks, dwell, cycles in force, M codes), `frame` (work offsets, tool lengths,
 //! G28/G30/G53), `cycles` (canned drilling cycles expanded), `options` (options and
-//! warnings) and the tests.
+//! warnings), `trace` (per-line frames and word positions for program rewriters) and the
+//! tests.
 
 mod cycles;
 mod frame;
@@ -14,7 +15,9 @@ mod options;
 mod reader;
 #[cfg(test)]
 mod tests;
+mod trace;
 
 pub use crate::motion::program::{Block, Feed, Motion, Plane, Pose, Program};
 pub use options::{ReadOptions, Warning};
-pub use reader::{parse, parse_with};
+pub use reader::{parse, parse_traced, parse_with};
+pub use trace::{LineFrame, WordSpan, word_spans};

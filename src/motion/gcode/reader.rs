@@ -22,6 +22,7 @@
 use super::cycles::Cycle;
 use super::lexer::{Lexed, g_name, lex, word_name};
 use super::options::{Legacy, Mode, Notes, ReadOptions, Warning};
+use super::trace::LineFrame;
 use crate::motion::error::Error;
 use crate::motion::program::{Plane, Pose, Program};
 
@@ -74,7 +75,7 @@ impl Modal {
 /// still move the machine); the interpolator drops those that move nothing.
 /// Never panics; every rejected input yields a typed [`Error`] naming the 1-based line.
 pub fn parse(text: &str) -> Result<Program, Error> {
-    read(text, &ReadOptions::default(), Mode::Legacy).map(|(p, _)| p)
+    read(text, &ReadOptions::default(), Mode::Legacy, None).map(|(p, _)| p)
 }
 
 /// Parses a whole program with `options`: lenient (the default: words that do not move an
@@ -89,10 +90,32 @@ pub fn parse_with(text: &str, options: &ReadOptions) -> Result<(Program, Vec<War
     } else {
         Mode::Lenient
     };
-    read(text, options, mode)
+    read(text, options, mode, None)
 }
 
-fn read(text: &str, opts: &ReadOptions, mode: Mode) -> Result<(Program, Vec<Warning>), Error> {
+/// [`parse_with`] that also answers the reader's frame at the end of every line it read
+/// (lines after M2/M30 are not read and have no frame), for tools that rewrite the program
+/// (`crate::cam`).
+pub fn parse_traced(
+    text: &str,
+    options: &ReadOptions,
+) -> Result<(Program, Vec<Warning>, Vec<LineFrame>), Error> {
+    let mode = if options.strict {
+        Mode::Strict
+    } else {
+        Mode::Lenient
+    };
+    let mut frames = Vec::new();
+    let (p, w) = read(text, options, mode, Some(&mut frames))?;
+    Ok((p, w, frames))
+}
+
+fn read(
+    text: &str,
+    opts: &ReadOptions,
+    mode: Mode,
+    mut trace: Option<&mut Vec<LineFrame>>,
+) -> Result<(Program, Vec<Warning>), Error> {
     let mut r = Reader {
         opts,
         notes: Notes::new(mode),
@@ -118,7 +141,19 @@ fn read(text: &str, opts: &ReadOptions, mode: Mode) -> Result<(Program, Vec<Warn
     for (idx, raw) in text.lines().enumerate() {
         let line = idx + 1;
         let lexed = lex(raw, line)?;
-        if r.apply(line, &lexed)? {
+        let ends = r.apply(line, &lexed)?;
+        if let Some(frames) = trace.as_deref_mut() {
+            frames.push(LineFrame {
+                line,
+                inch: r.m.inch,
+                incremental: r.m.incremental,
+                absolute_centres: r.m.absolute_centres,
+                shift_mm: [0, 1, 2].map(|k| r.m.shift(k)),
+                pose_mm: r.m.pose.xyz,
+                known: r.m.unknown.map(|u| u.is_none()),
+            });
+        }
+        if ends {
             break;
         }
     }

@@ -1,0 +1,293 @@
+//! Compensated programs for CAM post-processors (openapi.yaml; CONTRACT v1.1 "Compensated
+//! programs"): `POST /v1/machines/{machine}/compensated-program` (G-code in, G-code out, JSON
+//! or `Accept: text/plain`) and `POST /v1/machines/{machine}/compensated-points` (CL points,
+//! JSON or CSV). The compensation is the `cam` core's against the machine's volumetric map.
+
+use std::collections::BTreeMap;
+
+use axum::Router;
+use axum::extract::{Request, State};
+use axum::http::{HeaderMap, HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+use axum::routing::post;
+use serde::{Deserialize, Serialize};
+
+use super::AppState;
+use super::contour::ContourRequest;
+use super::error::{ApiError, ApiResult};
+use super::extract::{ApiJson, decode_json, is_csv_body, read_body};
+use super::id::{Id, PathIds};
+use super::volumetric::{MAX_POINTS, load_map};
+use crate::cam::{self, DEFAULT_TOLERANCE_MM};
+use crate::motion::{ReadOptions, check_period};
+use crate::volumetric::VolumetricMap;
+
+/// Routes of this resource.
+pub fn routes() -> Router<AppState> {
+    Router::new()
+        .route(
+            "/v1/machines/{machine}/compensated-program",
+            post(compensated_program),
+        )
+        .route(
+            "/v1/machines/{machine}/compensated-points",
+            post(compensated_points),
+        )
+}
+
+/// Header giving the number of warnings of a `text/plain` answer.
+pub const WARNINGS_HEADER: &str = "x-truecut-warnings";
+
+/// Body of `compensated-program`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct ProgramRequest {
+    /// The program text (ISO 6983 / Fanuc subset), in work coordinates.
+    pub gcode: String,
+    /// Volumetric pre-compensation (default: true when the machine has a map).
+    #[serde(default)]
+    pub volumetric: Option<bool>,
+    /// Contour pre-distortion (not available yet).
+    #[serde(default)]
+    pub contour: Option<bool>,
+    /// Interpolation period of the contour model, s.
+    #[serde(default)]
+    pub period_s: Option<f64>,
+    /// Largest distance of the written path from the compensated path, mm (default 0.001).
+    #[serde(default)]
+    pub tolerance_mm: Option<f64>,
+    /// Refuse (422) every word the reader would pass with a warning (default false).
+    #[serde(default)]
+    pub strict: bool,
+    /// Work offsets by code ("G54".."G59"): [x, y, z] mm in machine coordinates.
+    #[serde(default)]
+    pub work_offsets: BTreeMap<String, [f64; 3]>,
+    /// Tool lengths by H number ("1", "2", ...), mm, applied by G43 H.
+    #[serde(default)]
+    pub tool_lengths: BTreeMap<String, f64>,
+    /// Machine home for G28/G30/G53: [x, y, z] mm in machine coordinates.
+    #[serde(default)]
+    pub home: Option<[f64; 3]>,
+}
+
+impl ProgramRequest {
+    fn read_options(&self) -> Result<ReadOptions, ApiError> {
+        ContourRequest {
+            gcode: String::new(),
+            period_s: None,
+            strict: self.strict,
+            work_offsets: self.work_offsets.clone(),
+            tool_lengths: self.tool_lengths.clone(),
+            home: self.home,
+        }
+        .read_options()
+    }
+}
+
+/// Answer of `compensated-program` (JSON form).
+#[derive(Debug, Serialize)]
+pub struct ProgramResponse {
+    /// The compensated program.
+    pub gcode: String,
+    /// Warnings of the reader and the compensation.
+    pub warnings: Vec<String>,
+    /// Largest |compensation| applied, mm.
+    pub max_shift_mm: f64,
+    /// Blocks (lines) in the answer.
+    pub blocks: usize,
+    /// 1-based source line of every output line.
+    pub source_lines: Vec<usize>,
+}
+
+/// The machine's map, or 409 when it has none.
+async fn map_for(state: &AppState, machine: &Id) -> ApiResult<VolumetricMap> {
+    load_map(state, machine).await?.ok_or_else(|| {
+        ApiError::conflict(format!(
+            "machine '{machine}' has no volumetric map to compensate against: PUT \
+             /v1/machines/{machine}/volumetric-map first"
+        ))
+    })
+}
+
+/// True when the client asks for the program text alone (`Accept: text/plain`).
+fn wants_text(headers: &HeaderMap) -> bool {
+    headers
+        .get(header::ACCEPT)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|a| a.contains("text/plain"))
+}
+
+/// The program with the warnings as `( )` comment lines (ASCII) after a leading `%` and
+/// program number (Fanuc-style controls read comments anywhere).
+fn with_warning_comments(gcode: &str, warnings: &[String]) -> String {
+    let eol = if gcode.contains("\r\n") { "\r\n" } else { "\n" };
+    let mut lines: Vec<&str> = gcode.lines().collect();
+    let mut at = 0;
+    while at < lines.len() {
+        let t = lines[at].trim_start().to_ascii_uppercase();
+        if t.starts_with('%') || t.starts_with('O') || t.starts_with(':') {
+            at += 1;
+        } else {
+            break;
+        }
+    }
+    let mut comments = vec![format!(
+        "(TRUECUT VOLUMETRIC COMPENSATION: {} WARNINGS)",
+        warnings.len()
+    )];
+    for w in warnings {
+        // Controls read ASCII comments: brackets for parentheses, plain words for symbols.
+        let clean: String = w
+            .chars()
+            .map(|c| match c {
+                '(' => "[".to_string(),
+                ')' => "]".to_string(),
+                ';' => ",".to_string(),
+                'µ' => "u".to_string(),
+                '±' => "+/-".to_string(),
+                '−' => "-".to_string(),
+                '×' => "x".to_string(),
+                c if c.is_control() => " ".to_string(),
+                c if !c.is_ascii() => "?".to_string(),
+                c => c.to_string(),
+            })
+            .collect();
+        comments.push(format!("({clean})"));
+    }
+    let tail = lines.split_off(at);
+    let mut out: Vec<&str> = lines;
+    out.extend(comments.iter().map(String::as_str));
+    out.extend(tail);
+    let mut s = out.join(eol);
+    if gcode.ends_with('\n') {
+        s.push_str(eol);
+    }
+    s
+}
+
+async fn compensated_program(
+    State(state): State<AppState>,
+    PathIds([machine]): PathIds<1>,
+    headers: HeaderMap,
+    ApiJson(req): ApiJson<ProgramRequest>,
+) -> ApiResult<Response> {
+    let map = load_map(&state, &machine).await?;
+    if req.gcode.trim().is_empty() {
+        return Err(ApiError::bad_request(
+            "gcode is empty: send the program text, e.g. \"G1 X10 F600\"",
+        ));
+    }
+    let tolerance_mm = req.tolerance_mm.unwrap_or(DEFAULT_TOLERANCE_MM);
+    cam::check_tolerance(tolerance_mm)?;
+    if let Some(p) = req.period_s {
+        check_period(p)?;
+    }
+    let options = req.read_options()?;
+    let volumetric = req.volumetric.unwrap_or(map.is_some());
+    let contour = req.contour.unwrap_or(false);
+    if !volumetric && !contour {
+        return Err(ApiError::bad_request(if map.is_some() {
+            "nothing to do: both volumetric and contour are false; send \"volumetric\": true \
+             or \"contour\": true"
+                .to_string()
+        } else {
+            format!(
+                "nothing to do: machine '{machine}' has no volumetric map (so volumetric defaults \
+                 to false) and contour is not requested; PUT /v1/machines/{machine}/volumetric-map \
+                 or send \"contour\": true"
+            )
+        }));
+    }
+    if contour {
+        return Err(ApiError::unprocessable(
+            "contour pre-compensation is not available yet on this service: send \"contour\": \
+             false (volumetric compensation is available)",
+        ));
+    }
+    let map = match map {
+        Some(m) => m,
+        None => map_for(&state, &machine).await?,
+    };
+    let out = state
+        .jobs
+        .run(move || cam::compensate_program(&req.gcode, &options, &map, tolerance_mm))
+        .await??;
+    if wants_text(&headers) {
+        let text = with_warning_comments(&out.gcode, &out.warnings);
+        let mut resp =
+            ([(header::CONTENT_TYPE, "text/plain; charset=utf-8")], text).into_response();
+        resp.headers_mut()
+            .insert(WARNINGS_HEADER, HeaderValue::from(out.warnings.len()));
+        return Ok(resp);
+    }
+    Ok(ApiJson(ProgramResponse {
+        gcode: out.gcode,
+        warnings: out.warnings,
+        max_shift_mm: out.max_shift_mm,
+        blocks: out.blocks,
+        source_lines: out.source_lines,
+    })
+    .into_response())
+}
+
+/// JSON body of `compensated-points`.
+#[derive(Debug, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PointsRequest {
+    /// CL points (tool tip, machine frame), mm.
+    pub points: Vec<[f64; 3]>,
+}
+
+/// JSON answer of `compensated-points`.
+#[derive(Debug, Serialize)]
+pub struct PointsResponse {
+    /// p − e(p) per point, mm.
+    pub points: Vec<[f64; 3]>,
+    /// True where the point lies outside the map's box.
+    pub out_of_box: Vec<bool>,
+    /// Largest |e(p)|, mm.
+    pub max_shift_mm: f64,
+}
+
+async fn compensated_points(
+    State(state): State<AppState>,
+    PathIds([machine]): PathIds<1>,
+    req: Request,
+) -> ApiResult<Response> {
+    let is_csv = is_csv_body(
+        req.headers(),
+        "application/json ({\"points\": [[x, y, z], ...]}) or text/csv (header x_mm,y_mm,z_mm)",
+    )?;
+    let body = read_body(req).await?;
+    let points = if is_csv {
+        let text = std::str::from_utf8(&body)
+            .map_err(|_| ApiError::bad_request("the CSV body is not UTF-8 text"))?;
+        cam::points_from_csv(text)?
+    } else {
+        decode_json::<PointsRequest>(&body)?.points
+    };
+    if points.len() > MAX_POINTS {
+        return Err(ApiError::payload_too_large(format!(
+            "{} points: at most {MAX_POINTS} per request; split them",
+            points.len()
+        )));
+    }
+    let map = map_for(&state, &machine).await?;
+    let out = state
+        .jobs
+        .run(move || cam::compensate_points(&map, &points))
+        .await??;
+    if is_csv {
+        return Ok((
+            [(header::CONTENT_TYPE, "text/csv; charset=utf-8")],
+            cam::points_to_csv(&out.points),
+        )
+            .into_response());
+    }
+    Ok(ApiJson(PointsResponse {
+        points: out.points,
+        out_of_box: out.out_of_box,
+        max_shift_mm: out.max_shift_mm,
+    })
+    .into_response())
+}

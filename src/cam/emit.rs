@@ -1,0 +1,492 @@
+//! Re-emission keeping the post's structure: every source line is copied byte for byte
+//! unless its plan ([`LinePlan`]) says how its axis words change; a motion line may also be
+//! replaced by a list of G1 points (split arcs and lines, contour pre-distortion).
+//!
+//! Numbers are written in the program's own units at a fixed precision: 4 decimals in mm
+//! (0.1 µm) and 5 in inch (0.254 µm; Fanuc's IS-C input increments, ISO 6983-1 leaves the
+//! format to the control), in the line's G90/G91 mode. The emitter keeps the commanded
+//! machine position of the program it writes, so that increments (G91) and arc centres are
+//! those of the compensated positions and rounding never accumulates.
+//!
+//! Safety rule: an axis the program has not yet placed absolutely (at the start, or after
+//! G28 without a home) gets no new word in G90; only the words the post wrote are changed.
+
+use crate::motion::gcode::{LineFrame, WordSpan, word_spans};
+use crate::motion::program::Plane;
+
+/// How one source line is written.
+#[derive(Clone, Debug, PartialEq)]
+pub enum LinePlan {
+    /// Copied unchanged.
+    Keep,
+    /// A G0/G1 line (or a G2/G3 line kept as an arc, see `Arc`): its end is `end_mm`
+    /// (machine frame, mm).
+    Move {
+        /// End point, machine frame, mm.
+        end_mm: [f64; 3],
+    },
+    /// A G2/G3 line kept as an arc with a new end and centre (machine frame, mm; only the
+    /// plane's two centre components are used). R-form arcs keep their R word.
+    Arc {
+        /// End point, machine frame, mm.
+        end_mm: [f64; 3],
+        /// Centre, machine frame, mm.
+        centre_mm: [f64; 3],
+        /// Arc plane.
+        plane: Plane,
+    },
+    /// The line's motion replaced by G1 moves through `points_mm` (machine frame, mm; the
+    /// last is the end). The first point is written on the source line (keeping its N, F,
+    /// comments, M words), the others on new lines after it.
+    Points {
+        /// G1 points, machine frame, mm.
+        points_mm: Vec<[f64; 3]>,
+        /// F word (program units) of each point, when it must be written on every one
+        /// (G93 inverse time, contour pre-distortion); `None` keeps the source's F.
+        feeds: Option<Vec<f64>>,
+    },
+    /// A canned-cycle hole (G90): X Y of the hole, the R plane and the bottom (machine frame,
+    /// mm); `at_r_after` when the tool stays at R after the hole (G99).
+    Hole {
+        /// Hole position X, Y, mm.
+        xy_mm: [f64; 2],
+        /// Z of the R plane, mm.
+        r_z_mm: f64,
+        /// Z of the hole bottom, mm.
+        bottom_z_mm: f64,
+        /// The tool ends the hole at R (G99, or G98 with the initial level below R).
+        at_r_after: bool,
+    },
+}
+
+/// Motion G codes × 10 that set the modal motion group.
+const MOTION_CODES: [u32; 9] = [0, 10, 20, 30, 730, 810, 820, 830, 850];
+
+/// What the emitter learned of a line before it is planned.
+#[derive(Clone, Debug, Default)]
+pub struct LineInfo {
+    /// Words with their positions.
+    pub spans: Vec<WordSpan>,
+    /// X, Y, Z named as positions (not a dwell's X).
+    pub named: [bool; 3],
+    /// G28/G30/G53 on the line.
+    pub machine_move: bool,
+    /// G4 on the line.
+    pub dwell: bool,
+    /// The line names an axis and moves (not a dwell, not G28/G30/G53).
+    pub moves: bool,
+    /// The line has its own motion G word (G0..G3 or a cycle).
+    pub explicit_motion: bool,
+    /// Motion mode in force after the line in the source (G code × 10).
+    pub modal: Option<u32>,
+}
+
+impl LineInfo {
+    /// The line drills a hole of the canned cycle in force.
+    pub fn is_hole(&self) -> bool {
+        self.moves && self.modal.is_some_and(|m| m >= 730)
+    }
+}
+
+/// Writes the output program line by line.
+pub struct Emitter {
+    lines: Vec<String>,
+    source_lines: Vec<usize>,
+    cmd: [f64; 3],
+    known: [bool; 3],
+    prev_pose: [f64; 3],
+    orig_modal: Option<u32>,
+    out_modal: Option<u32>,
+    cycle_words: [Option<String>; 2],
+}
+
+/// Letters of the three linear axes and of their centre words.
+const AXES: [char; 3] = ['X', 'Y', 'Z'];
+const CENTRES: [char; 3] = ['I', 'J', 'K'];
+
+/// Decimals written for a line (4 in mm, 5 in inch).
+pub fn decimals(inch: bool) -> usize {
+    if inch { 5 } else { 4 }
+}
+
+/// `v` rounded to `d` decimals.
+fn round_to(v: f64, d: usize) -> f64 {
+    let s = 10f64.powi(d as i32);
+    (v * s).round() / s
+}
+
+/// `v` with `d` decimals, never `-0.000`.
+pub fn format_number(v: f64, d: usize) -> String {
+    let r = round_to(v, d);
+    let r = if r == 0.0 { 0.0 } else { r };
+    format!("{r:.d$}")
+}
+
+fn g_times_ten(v: f64) -> u32 {
+    (v * 10.0).round().max(0.0) as u32
+}
+
+/// Half the output resolution along a 3-D diagonal, mm: the most rounding moves a point.
+pub fn rounding_mm(inch: bool) -> f64 {
+    let scale = if inch { 25.4 } else { 1.0 };
+    0.5 * 10f64.powi(-(decimals(inch) as i32)) * scale * 3f64.sqrt()
+}
+
+impl Default for Emitter {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl Emitter {
+    /// An emitter at the reader's start (program zero, no axis placed yet).
+    pub fn new() -> Self {
+        Emitter {
+            lines: Vec::new(),
+            source_lines: Vec::new(),
+            cmd: [0.0; 3],
+            known: [false; 3],
+            prev_pose: [0.0; 3],
+            orig_modal: None,
+            out_modal: None,
+            cycle_words: [None, None],
+        }
+    }
+
+    /// The output lines and the 1-based source line of each.
+    pub fn finish(self) -> (Vec<String>, Vec<usize>) {
+        (self.lines, self.source_lines)
+    }
+
+    /// Number of lines written so far.
+    pub fn len(&self) -> usize {
+        self.lines.len()
+    }
+
+    /// True before the first line.
+    pub fn is_empty(&self) -> bool {
+        self.lines.is_empty()
+    }
+
+    /// The commanded machine position (mm) of the output so far.
+    pub fn commanded(&self) -> [f64; 3] {
+        self.cmd
+    }
+
+    /// Reads a line's words and the source's modal motion after it (call once per line,
+    /// before [`Emitter::write`]).
+    pub fn begin(&mut self, raw: &str) -> LineInfo {
+        let spans = word_spans(raw);
+        let gs: Vec<u32> = spans
+            .iter()
+            .filter(|s| s.letter == 'G')
+            .map(|s| g_times_ten(s.value))
+            .collect();
+        let dwell = gs.contains(&40);
+        let machine_move = gs.iter().any(|g| matches!(g, 280 | 300 | 530));
+        let mut named = [false; 3];
+        for s in &spans {
+            if let Some(k) = AXES.iter().position(|&a| a == s.letter) {
+                named[k] = !dwell;
+            }
+        }
+        let mut explicit_motion = false;
+        for &g in &gs {
+            if MOTION_CODES.contains(&g) {
+                self.orig_modal = Some(g);
+                explicit_motion = true;
+            } else if g == 800 {
+                self.orig_modal = None;
+            }
+        }
+        LineInfo {
+            moves: named.iter().any(|&n| n) && !dwell && !machine_move,
+            spans,
+            named,
+            machine_move,
+            dwell,
+            explicit_motion,
+            modal: self.orig_modal,
+        }
+    }
+
+    /// Writes source line `line` (text `raw`, words `info` from [`Emitter::begin`], reader
+    /// frame `frame`, `None` for lines the reader did not read) by `plan`.
+    pub fn write(
+        &mut self,
+        line: usize,
+        raw: &str,
+        info: &LineInfo,
+        frame: Option<&LineFrame>,
+        plan: LinePlan,
+    ) {
+        let Some(frame) = frame else {
+            self.push(line, raw.to_string());
+            return;
+        };
+        let scale = if frame.inch { 25.4 } else { 1.0 };
+        let d = decimals(frame.inch);
+        let is_points = matches!(plan, LinePlan::Points { .. });
+        match plan {
+            LinePlan::Keep => {
+                let text = match self.modal_word(info) {
+                    Some(g) => rewrite(raw, &info.spans, |_| false, &[], Some(&g)),
+                    None => raw.to_string(),
+                };
+                self.push(line, text);
+                self.follow(info, frame);
+            }
+            LinePlan::Move { end_mm } => {
+                let words = self.axis_words(end_mm, info.named, frame);
+                let motion = self.modal_word(info);
+                let text = rewrite(raw, &info.spans, is_axis, &words, motion.as_deref());
+                self.push(line, text);
+            }
+            LinePlan::Arc {
+                end_mm,
+                centre_mm,
+                plane,
+            } => {
+                let start = self.cmd;
+                let mut words = self.axis_words(end_mm, info.named, frame);
+                let r_form = info.spans.iter().any(|s| s.letter == 'R');
+                if !r_form {
+                    let (p0, p1, _) = plane.axes();
+                    let mut ks = [p0, p1];
+                    ks.sort_unstable();
+                    for k in ks {
+                        let v = if frame.absolute_centres {
+                            (centre_mm[k] - frame.shift_mm[k]) / scale
+                        } else {
+                            (centre_mm[k] - start[k]) / scale
+                        };
+                        words.push(format!("{}{}", CENTRES[k], format_number(v, d)));
+                    }
+                }
+                let drop = |s: &WordSpan| is_axis(s) || (!r_form && is_centre(s));
+                let motion = self.modal_word(info);
+                let text = rewrite(raw, &info.spans, drop, &words, motion.as_deref());
+                self.push(line, text);
+            }
+            LinePlan::Points { points_mm, feeds } => {
+                let g1 = motion_style(raw, &info.spans, 1);
+                let fw = |i: usize| {
+                    feeds
+                        .as_ref()
+                        .and_then(|f| f.get(i))
+                        .map(|f| format!("F{}", format_number(*f, 4)))
+                };
+                let mut words = match points_mm.first() {
+                    Some(&p) => self.axis_words(p, info.named, frame),
+                    None => Vec::new(),
+                };
+                words.extend(fw(0));
+                let drop = |s: &WordSpan| {
+                    is_axis(s) || is_centre(s) || (feeds.is_some() && s.letter == 'F')
+                };
+                let text = rewrite(raw, &info.spans, drop, &words, Some(&g1));
+                self.push(line, text);
+                self.out_modal = Some(10);
+                let sep = if spaced(raw, &info.spans) { " " } else { "" };
+                for (i, &p) in points_mm.iter().enumerate().skip(1) {
+                    let mut words = self.axis_words(p, [false; 3], frame);
+                    if words.is_empty() {
+                        continue;
+                    }
+                    words.extend(fw(i));
+                    self.push(line, words.join(sep));
+                }
+            }
+            LinePlan::Hole {
+                xy_mm,
+                r_z_mm,
+                bottom_z_mm,
+                at_r_after,
+            } => {
+                let mut words = Vec::new();
+                for k in 0..2 {
+                    let v = round_to((xy_mm[k] - frame.shift_mm[k]) / scale, d);
+                    let cur = round_to((self.cmd[k] - frame.shift_mm[k]) / scale, d);
+                    if info.named[k] || v != cur || !self.known[k] {
+                        words.push(format!("{}{}", AXES[k], format_number(v, d)));
+                        self.cmd[k] = v * scale + frame.shift_mm[k];
+                        self.known[k] = true;
+                    }
+                }
+                let z = round_to((bottom_z_mm - frame.shift_mm[2]) / scale, d);
+                let r = round_to((r_z_mm - frame.shift_mm[2]) / scale, d);
+                let zr = [
+                    format!("Z{}", format_number(z, d)),
+                    format!("R{}", format_number(r, d)),
+                ];
+                let had = [info.named[2], info.spans.iter().any(|s| s.letter == 'R')];
+                for (i, w) in zr.into_iter().enumerate() {
+                    if had[i] || self.cycle_words[i].as_deref() != Some(w.as_str()) {
+                        words.push(w.clone());
+                        self.cycle_words[i] = Some(w);
+                    }
+                }
+                if at_r_after {
+                    self.cmd[2] = r * scale + frame.shift_mm[2];
+                }
+                let drop = |s: &WordSpan| is_axis(s) || s.letter == 'R';
+                let text = rewrite(raw, &info.spans, drop, &words, None);
+                self.push(line, text);
+            }
+        }
+        if info.moves || info.explicit_motion {
+            self.out_modal = if is_points { Some(10) } else { self.orig_modal };
+        }
+        self.prev_pose = frame.pose_mm;
+    }
+
+    /// The source's motion G word, when a modal line needs it because the output's motion
+    /// mode differs (after a split arc the output is in G1).
+    fn modal_word(&self, info: &LineInfo) -> Option<String> {
+        match self.orig_modal {
+            Some(g) if info.moves && !info.explicit_motion && self.out_modal != self.orig_modal => {
+                (g <= 30).then(|| format!("G{}", g / 10))
+            }
+            _ => None,
+        }
+    }
+
+    /// Axis words placing the tool at `q` (machine frame, mm) in the line's mode; updates
+    /// the commanded position. Absolute: the named axes and every placed axis that moves;
+    /// incremental: the named axes and every non-zero increment.
+    fn axis_words(&mut self, q: [f64; 3], named: [bool; 3], frame: &LineFrame) -> Vec<String> {
+        let scale = if frame.inch { 25.4 } else { 1.0 };
+        let d = decimals(frame.inch);
+        let mut words = Vec::new();
+        for k in 0..3 {
+            if frame.incremental {
+                let inc = round_to((q[k] - self.cmd[k]) / scale, d);
+                if named[k] || inc != 0.0 {
+                    words.push(format!("{}{}", AXES[k], format_number(inc, d)));
+                    self.cmd[k] += inc * scale;
+                }
+            } else {
+                let shift = frame.shift_mm[k];
+                let v = round_to((q[k] - shift) / scale, d);
+                let cur = round_to((self.cmd[k] - shift) / scale, d);
+                if named[k] || (self.known[k] && v != cur) {
+                    words.push(format!("{}{}", AXES[k], format_number(v, d)));
+                    self.cmd[k] = v * scale + shift;
+                    self.known[k] = true;
+                }
+            }
+        }
+        words
+    }
+
+    /// A line copied unchanged moves the output as it moves the source.
+    fn follow(&mut self, info: &LineInfo, frame: &LineFrame) {
+        for k in 0..3 {
+            let moved = frame.pose_mm[k] != self.prev_pose[k];
+            let relative = frame.incremental && !info.machine_move;
+            if info.named[k] || moved {
+                if relative {
+                    self.cmd[k] += frame.pose_mm[k] - self.prev_pose[k];
+                } else {
+                    self.cmd[k] = frame.pose_mm[k];
+                }
+            }
+            let placed = info.named[k] && !relative;
+            self.known[k] = frame.known[k] && (self.known[k] || placed);
+        }
+    }
+
+    fn push(&mut self, line: usize, text: String) {
+        self.lines.push(text);
+        self.source_lines.push(line);
+    }
+}
+
+fn is_axis(s: &WordSpan) -> bool {
+    AXES.contains(&s.letter)
+}
+
+fn is_centre(s: &WordSpan) -> bool {
+    CENTRES.contains(&s.letter) || s.letter == 'R'
+}
+
+fn is_motion_g(s: &WordSpan) -> bool {
+    s.letter == 'G' && g_times_ten(s.value) <= 30 && g_times_ten(s.value) % 10 == 0
+}
+
+/// Words of the line are separated by spaces (or the line has fewer than two words).
+fn spaced(raw: &str, spans: &[WordSpan]) -> bool {
+    spans.len() < 2
+        || spans
+            .windows(2)
+            .any(|w| raw[w[0].end..w[1].start].contains(char::is_whitespace))
+}
+
+/// `G1` as the line writes its motion word (`G01` when the source writes `G02`).
+fn motion_style(raw: &str, spans: &[WordSpan], n: u32) -> String {
+    let two = spans
+        .iter()
+        .find(|s| is_motion_g(s))
+        .is_some_and(|s| raw[s.start + 1..s.end].trim_start().starts_with('0'));
+    if two {
+        format!("G{n:02}")
+    } else {
+        format!("G{n}")
+    }
+}
+
+/// `raw` with the words `drop` removed, `words` written where the first dropped word was
+/// (after the last word when none is dropped), and the motion word `motion` replacing the
+/// line's G0..G3 word or, without one, written after the N word. Everything else (spacing,
+/// comments, other words) is copied.
+pub fn rewrite(
+    raw: &str,
+    spans: &[WordSpan],
+    drop: impl Fn(&WordSpan) -> bool,
+    words: &[String],
+    motion: Option<&str>,
+) -> String {
+    let sep = if spaced(raw, spans) { " " } else { "" };
+    let mut out = String::with_capacity(raw.len() + 16);
+    let mut cursor = 0;
+    let mut inserted = words.is_empty();
+    let replace_at = motion.and(spans.iter().position(is_motion_g));
+    let insert_before = match (motion, replace_at) {
+        (Some(_), None) => spans.iter().position(|s| s.letter != 'N'),
+        _ => None,
+    };
+    for (i, s) in spans.iter().enumerate() {
+        let gap = &raw[cursor..s.start];
+        if Some(i) == insert_before {
+            out.push_str(gap);
+            out.push_str(motion.unwrap_or_default());
+            out.push_str(sep);
+            cursor = s.start;
+        }
+        let gap = &raw[cursor..s.start];
+        if Some(i) == replace_at {
+            out.push_str(gap);
+            out.push_str(motion.unwrap_or_default());
+        } else if drop(s) {
+            if !inserted {
+                out.push_str(gap);
+                out.push_str(&words.join(sep));
+                inserted = true;
+            } else if !gap.trim().is_empty() {
+                out.push_str(gap);
+            }
+        } else {
+            out.push_str(gap);
+            out.push_str(&raw[s.start..s.end]);
+        }
+        cursor = s.end;
+    }
+    if !inserted {
+        if !spans.is_empty() {
+            out.push_str(sep);
+        }
+        out.push_str(&words.join(sep));
+    }
+    out.push_str(&raw[cursor..]);
+    out
+}

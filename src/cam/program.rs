@@ -1,0 +1,320 @@
+//! Volumetric compensation of a whole program (CONTRACT v1.1 "Compensated programs"): every
+//! programmed tool-tip point p (machine frame: after work offset and tool length, where the
+//! map was fitted) becomes p − e(p), written back in the program's own frame and units.
+//!
+//! - G0: the end point only. G1: the end point; where e varies along the segment by more
+//!   than the tolerance from linear between the compensated ends, the segment becomes G1
+//!   points (bisection until every piece is within tolerance).
+//! - G2/G3 (any plane, IJK or R, helices): kept as an arc with shifted end and centre when e
+//!   is constant along it within the tolerance; otherwise G1 points within the tolerance of
+//!   the compensated arc (chord error and variation of e together, [`super::paths`]).
+//! - Canned cycles (G90): the hole bottom X Y Z is compensated, and the R plane's Z at the
+//!   hole; the drill axis stays parallel to Z and pecks are not modelled (a warning).
+//! - What the service cannot place (G28/G30/G53, unknown positions, RTCP tool-tip frames, G91
+//!   cycles) is copied unchanged with a warning naming the lines.
+//!
+//! The error field is the machine's volumetric map (Xiang et al. 2019; Wang, Dai & Hong),
+//! queried as its predict route does (outside the box: the nearest point of the box, and a
+//! warning naming the lines).
+
+use super::emit::{Emitter, LineInfo, LinePlan, rounding_mm};
+use super::error::Error;
+use super::field::ErrorField;
+use super::paths::{CompensatedArc, Shifter, arc_points, linear_points};
+use crate::motion::ReadOptions;
+use crate::motion::gcode::{LineFrame, parse_traced};
+use crate::motion::program::{Block, Feed, Motion};
+
+/// Smallest `tolerance_mm` accepted, mm.
+pub const MIN_TOLERANCE_MM: f64 = 1e-5;
+/// Largest `tolerance_mm` accepted, mm.
+pub const MAX_TOLERANCE_MM: f64 = 0.1;
+/// Default `tolerance_mm`, mm.
+pub const DEFAULT_TOLERANCE_MM: f64 = 0.001;
+/// Most lines written in one answer.
+pub const MAX_OUTPUT_BLOCKS: usize = 2_000_000;
+
+/// A compensated program.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Compensated {
+    /// The program text, same line endings as the source.
+    pub gcode: String,
+    /// Warnings of the reader and of the compensation, one sentence each.
+    pub warnings: Vec<String>,
+    /// Largest |e(p)| applied, mm.
+    pub max_shift_mm: f64,
+    /// Lines (blocks) in the answer.
+    pub blocks: usize,
+    /// 1-based source line of every output line.
+    pub source_lines: Vec<usize>,
+}
+
+/// Checks `tolerance_mm` against [[`MIN_TOLERANCE_MM`], [`MAX_TOLERANCE_MM`]].
+pub fn check_tolerance(tolerance_mm: f64) -> Result<(), Error> {
+    if (MIN_TOLERANCE_MM..=MAX_TOLERANCE_MM).contains(&tolerance_mm) {
+        Ok(())
+    } else {
+        Err(Error::Tolerance {
+            got: tolerance_mm,
+            min: MIN_TOLERANCE_MM,
+            max: MAX_TOLERANCE_MM,
+        })
+    }
+}
+
+/// Lines of a list named in one warning, at most this many.
+const LINES_NAMED: usize = 20;
+
+fn line_list(lines: &[usize]) -> String {
+    let mut s: Vec<String> = lines
+        .iter()
+        .take(LINES_NAMED)
+        .map(|l| l.to_string())
+        .collect();
+    if lines.len() > LINES_NAMED {
+        s.push(format!("and {} more", lines.len() - LINES_NAMED));
+    }
+    s.join(", ")
+}
+
+/// Compensates `text` against `field` (volumetric pre-compensation: each programmed
+/// tool-tip point p, mm in the machine frame, becomes p − e(p); Xiang et al. 2019 §2, the
+/// error map inverted to first order), read with `options` (work offsets, tool lengths,
+/// home, strict), within `tolerance_mm` (mm, [1e-5, 0.1]) of the compensated path. Errors:
+/// the reader's (line and word), a tolerance out of range, an answer over
+/// [`MAX_OUTPUT_BLOCKS`] lines.
+pub fn compensate_program(
+    text: &str,
+    options: &ReadOptions,
+    field: &dyn ErrorField,
+    tolerance_mm: f64,
+) -> Result<Compensated, Error> {
+    check_tolerance(tolerance_mm)?;
+    let (program, reader_warnings, frames) = parse_traced(text, options)?;
+    let raw_lines: Vec<&str> = text.lines().collect();
+    let mut by_line: Vec<Vec<&Block>> = vec![Vec::new(); raw_lines.len() + 1];
+    for b in &program.blocks {
+        if let Some(v) = by_line.get_mut(b.line) {
+            v.push(b);
+        }
+    }
+    let mut warnings: Vec<String> = reader_warnings.iter().map(|w| w.to_string()).collect();
+    let inch = frames.iter().any(|f| f.inch);
+    let tol = (tolerance_mm - rounding_mm(inch)).max(0.5 * tolerance_mm);
+    if tolerance_mm < 2.0 * rounding_mm(inch) {
+        warnings.push(format!(
+            "tolerance_mm {tolerance_mm} is close to the output resolution (±{:.5} mm): points \
+             are within tolerance before rounding to the written decimals",
+            rounding_mm(inch)
+        ));
+    }
+    let mut shifter = Shifter::new(field);
+    let mut em = Emitter::new();
+    let mut notes = Notes::default();
+    for (idx, raw) in raw_lines.iter().enumerate() {
+        let line = idx + 1;
+        let info = em.begin(raw);
+        let frame = frames.get(idx).filter(|f| f.line == line);
+        let plan = match frame {
+            Some(frame) => plan_line(
+                line,
+                &info,
+                frame,
+                &by_line[line],
+                &mut shifter,
+                tol,
+                &mut notes,
+            ),
+            None => LinePlan::Keep,
+        };
+        em.write(line, raw, &info, frame, plan);
+        if em.len() > MAX_OUTPUT_BLOCKS {
+            return Err(Error::TooLong {
+                limit: MAX_OUTPUT_BLOCKS,
+            });
+        }
+    }
+    notes.into_warnings(&mut warnings, &shifter.out_of_box);
+    let (lines, source_lines) = em.finish();
+    let eol = if text.contains("\r\n") { "\r\n" } else { "\n" };
+    let mut gcode = lines.join(eol);
+    if text.ends_with('\n') {
+        gcode.push_str(eol);
+    }
+    Ok(Compensated {
+        gcode,
+        warnings,
+        max_shift_mm: shifter.max_shift_mm,
+        blocks: lines.len(),
+        source_lines,
+    })
+}
+
+/// Lines copied unchanged, by reason.
+#[derive(Default)]
+struct Notes {
+    machine_moves: Vec<usize>,
+    unplaced: Vec<usize>,
+    rtcp: Vec<usize>,
+    incremental_cycles: Vec<usize>,
+    holes: Vec<usize>,
+    split: Vec<usize>,
+}
+
+impl Notes {
+    fn into_warnings(self, out: &mut Vec<String>, out_of_box: &[usize]) {
+        let mut say = |lines: &[usize], what: &str| {
+            if !lines.is_empty() {
+                out.push(format!("lines {}: {what}", line_list(lines)));
+            }
+        };
+        say(
+            &self.machine_moves,
+            "G28/G30/G53 move to machine positions: copied uncompensated",
+        );
+        say(
+            &self.unplaced,
+            "the service cannot place these blocks (unknown machine position): copied uncompensated",
+        );
+        say(
+            &self.rtcp,
+            "RTCP blocks are tool-tip points in the workpiece frame, not machine positions: copied uncompensated",
+        );
+        say(
+            &self.incremental_cycles,
+            "canned cycles in G91 are copied uncompensated: post the cycles in G90",
+        );
+        say(
+            &self.holes,
+            "canned-cycle holes: X Y Z compensated at the hole bottom and R at the hole; the drill \
+             axis stays parallel to Z and pecks (Q) are not modelled",
+        );
+        say(
+            &self.split,
+            "split into G1 points: the error varies along the move by more than tolerance_mm",
+        );
+        say(
+            out_of_box,
+            "points outside the volumetric map's box: compensated with the error at the nearest \
+             point of the box (out_of_box, as the predict route)",
+        );
+    }
+}
+
+/// The plan of one line the reader read.
+fn plan_line(
+    line: usize,
+    info: &LineInfo,
+    frame: &LineFrame,
+    blocks: &[&Block],
+    shifter: &mut Shifter<'_>,
+    tol: f64,
+    notes: &mut Notes,
+) -> LinePlan {
+    if info.machine_move {
+        notes.machine_moves.push(line);
+        return LinePlan::Keep;
+    }
+    if info.dwell || !info.moves {
+        return LinePlan::Keep;
+    }
+    if blocks.is_empty() {
+        notes.unplaced.push(line);
+        return LinePlan::Keep;
+    }
+    if blocks.iter().any(|b| b.rtcp) {
+        notes.rtcp.push(line);
+        return LinePlan::Keep;
+    }
+    if info.is_hole() {
+        if frame.incremental {
+            notes.incremental_cycles.push(line);
+            return LinePlan::Keep;
+        }
+        let Some(feed) = blocks
+            .iter()
+            .find(|b| b.feed != Feed::Rapid && b.motion == Motion::Linear)
+        else {
+            notes.unplaced.push(line);
+            return LinePlan::Keep;
+        };
+        notes.holes.push(line);
+        let bottom = feed.end.xyz;
+        let r_plane = feed.start.xyz;
+        let eb = shifter.error(line, bottom);
+        let er = shifter.error(line, r_plane);
+        let last_z = blocks.last().map(|b| b.end.xyz[2]).unwrap_or(r_plane[2]);
+        return LinePlan::Hole {
+            xy_mm: [bottom[0] - eb[0], bottom[1] - eb[1]],
+            r_z_mm: r_plane[2] - er[2],
+            bottom_z_mm: bottom[2] - eb[2],
+            at_r_after: (last_z - r_plane[2]).abs() < 1e-9,
+        };
+    }
+    let [block] = blocks else {
+        notes.unplaced.push(line);
+        return LinePlan::Keep;
+    };
+    let end = block.end.xyz;
+    match block.motion {
+        Motion::Dwell { .. } => LinePlan::Keep,
+        Motion::Linear if block.feed == Feed::Rapid => LinePlan::Move {
+            end_mm: shifter.compensate(line, end),
+        },
+        Motion::Linear => {
+            let pts = linear_points(shifter, line, block.start.xyz, end, tol);
+            if pts.len() == 1 {
+                LinePlan::Move { end_mm: pts[0] }
+            } else {
+                notes.split.push(line);
+                let feeds = inverse_time_feeds(block, &pts, shifter.comp(block.start.xyz));
+                LinePlan::Points {
+                    points_mm: pts,
+                    feeds,
+                }
+            }
+        }
+        Motion::Arc {
+            plane,
+            center,
+            sweep_rad,
+        } => match arc_points(shifter, line, block, plane, center, sweep_rad, tol) {
+            CompensatedArc::Shifted { end_mm, centre_mm } => LinePlan::Arc {
+                end_mm,
+                centre_mm,
+                plane,
+            },
+            CompensatedArc::Points(pts) => {
+                notes.split.push(line);
+                let feeds = inverse_time_feeds(block, &pts, shifter.comp(block.start.xyz));
+                LinePlan::Points {
+                    points_mm: pts,
+                    feeds,
+                }
+            }
+        },
+    }
+}
+
+/// Under G93 every piece of a split block carries its own F: the block's F (1/min) over the
+/// piece's share of the length.
+fn inverse_time_feeds(block: &Block, pts: &[[f64; 3]], start: [f64; 3]) -> Option<Vec<f64>> {
+    let Feed::InverseTime(f) = block.feed else {
+        return None;
+    };
+    let mut prev = start;
+    let lens: Vec<f64> = pts
+        .iter()
+        .map(|p| {
+            let l = crate::numeric::vec3::norm(crate::numeric::vec3::sub(*p, prev));
+            prev = *p;
+            l
+        })
+        .collect();
+    let total: f64 = lens.iter().sum();
+    Some(
+        lens.iter()
+            .map(|l| if *l > 0.0 { f * total / l } else { f })
+            .collect(),
+    )
+}

@@ -1,0 +1,389 @@
+//! HTTP end to end: `POST /v1/machines/{machine}/compensated-program` and
+//! `.../compensated-points` (openapi.yaml; CONTRACT v1.1 "Compensated programs"), on a map
+//! fitted through the API from a synthetic machine's grid, checked against the map's own
+//! predict route (`POST .../volumetric-map/predict`) on three post-processor programs
+//! (`tests/data/programs/`, see tests/data/README.md).
+
+use crate::helpers::*;
+
+use serde_json::{Value, json};
+use truecut::cam::arc_point;
+use truecut::motion::gcode::{Block, Feed, Motion, ReadOptions, parse_with, word_spans};
+use truecut::volumetric::{ShapeFamily, SyntheticMachine};
+
+const PROGRAM: &str = "/v1/machines/m/compensated-program";
+const POINTS: &str = "/v1/machines/m/compensated-points";
+const PREDICT: &str = "/v1/machines/m/volumetric-map/predict";
+
+/// Half the output resolution in mm along a diagonal (4 decimals in mm, 5 in inch).
+const ROUNDING_MM: f64 = 0.5e-4 * 1.7321;
+
+async fn machine_with_map(app: &TestApp) {
+    let r = app.put_json("/v1/machines/m", &machine_xyz()).await;
+    assert!(r.status().is_success(), "PUT machine: {}", r.status());
+    let m = SyntheticMachine::new(8, ShapeFamily::TrendAndWaviness);
+    let d = m.measure_grid([6, 5, 4], 3);
+    let body = json!({"nodes": d.nodes, "errors": d.errors, "model": "kinematic",
+                      "tool_offset_mm": m.tool_offset_mm});
+    let r = app.put_json("/v1/machines/m/volumetric-map", &body).await;
+    assert_eq!(r.status(), 201, "PUT map");
+}
+
+/// e(p) of the map by its predict route, mm.
+async fn predict(app: &TestApp, points: &[[f64; 3]]) -> Vec<[f64; 3]> {
+    let mut out = Vec::new();
+    for chunk in points.chunks(5000) {
+        let r = app.post_json(PREDICT, &json!({"points": chunk})).await;
+        assert_eq!(r.status(), 200);
+        let b: Value = r.json().await.unwrap();
+        out.extend(serde_json::from_value::<Vec<[f64; 3]>>(b["errors"].clone()).unwrap());
+    }
+    out
+}
+
+struct Case {
+    name: &'static str,
+    text: &'static str,
+    offsets: Value,
+    tools: Value,
+}
+
+fn cases() -> Vec<Case> {
+    vec![
+        Case {
+            name: "fanuc_finish",
+            text: include_str!("../data/programs/fanuc_finish.nc"),
+            offsets: json!({"G54": [300.0, 150.0, 100.0]}),
+            tools: json!({"1": 150.0}),
+        },
+        Case {
+            name: "haas_drill",
+            text: include_str!("../data/programs/haas_drill.nc"),
+            offsets: json!({"G54": [200.0, 100.0, 150.0]}),
+            tools: json!({"3": 100.0}),
+        },
+        Case {
+            name: "siemens_iso_turnmill",
+            text: include_str!("../data/programs/siemens_iso_turnmill.nc"),
+            offsets: json!({"G54": [300.0, 200.0, 150.0]}),
+            tools: json!({"5": 120.0}),
+        },
+    ]
+}
+
+fn read_options(c: &Case) -> ReadOptions {
+    let mut o = ReadOptions::default();
+    o.work_offsets_mm[0] = serde_json::from_value(c.offsets["G54"].clone()).unwrap();
+    for (k, v) in c.tools.as_object().unwrap() {
+        o.tool_lengths_mm
+            .insert(k.parse().unwrap(), v.as_f64().unwrap());
+    }
+    o
+}
+
+fn dist(a: [f64; 3], b: [f64; 3]) -> f64 {
+    (0..3).map(|k| (a[k] - b[k]).powi(2)).sum::<f64>().sqrt()
+}
+
+fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+fn to_segment(c: [f64; 3], s: [f64; 3], e: [f64; 3]) -> f64 {
+    let d = sub(e, s);
+    let l2: f64 = d.iter().map(|v| v * v).sum();
+    let t = if l2 > 0.0 {
+        ((0..3).map(|k| (c[k] - s[k]) * d[k]).sum::<f64>() / l2).clamp(0.0, 1.0)
+    } else {
+        0.0
+    };
+    dist([0, 1, 2].map(|k| s[k] + d[k] * t), c)
+}
+
+/// The point of a source block that the compensation places: its end, or for a canned-cycle
+/// line the hole bottom (the end of its feed move).
+fn placed_point(blocks: &[&Block]) -> Option<[f64; 3]> {
+    match blocks {
+        [b] if !matches!(b.motion, Motion::Dwell { .. }) => Some(b.end.xyz),
+        [_, _, ..] => blocks
+            .iter()
+            .find(|b| b.feed != Feed::Rapid)
+            .map(|b| b.end.xyz),
+        _ => None,
+    }
+}
+
+async fn programs_match_the_predict_route(app: TestApp) {
+    machine_with_map(&app).await;
+    let tol = 0.001;
+    let mut split_lines_checked = 0;
+    for c in cases() {
+        let r = app
+            .post_json(
+                PROGRAM,
+                &json!({"gcode": c.text, "work_offsets": c.offsets, "tool_lengths": c.tools}),
+            )
+            .await;
+        assert_eq!(r.status(), 200, "{}", c.name);
+        let b: Value = r.json().await.unwrap();
+        let out = b["gcode"].as_str().unwrap();
+        let source_lines: Vec<usize> = serde_json::from_value(b["source_lines"].clone()).unwrap();
+        assert_eq!(b["blocks"].as_u64().unwrap() as usize, out.lines().count());
+        assert_eq!(source_lines.len(), out.lines().count());
+        let opts = read_options(&c);
+        // The answer parses with the reader.
+        let (src_prog, _) = parse_with(c.text, &opts).unwrap();
+        let (out_prog, _) = parse_with(out, &opts).expect("the answer parses");
+        // Non-motion lines pass through byte for byte.
+        let out_lines: Vec<&str> = out.lines().collect();
+        for (idx, raw) in c.text.lines().enumerate() {
+            let moves = word_spans(raw).iter().any(|s| "XYZ".contains(s.letter));
+            if !moves || raw.contains("G28") || raw.contains("G53") {
+                let at = source_lines.iter().position(|&l| l == idx + 1).unwrap();
+                assert_eq!(out_lines[at], raw, "{}: line {}", c.name, idx + 1);
+            }
+        }
+        // Every placed point q against p − e(p), e from the predict route.
+        let n_lines = c.text.lines().count();
+        let mut pairs = Vec::new();
+        for line in 1..=n_lines {
+            let src: Vec<&Block> = src_prog.blocks.iter().filter(|b| b.line == line).collect();
+            let got: Vec<&Block> = out_prog
+                .blocks
+                .iter()
+                .filter(|b| source_lines[b.line - 1] == line)
+                .collect();
+            let q = if src.len() > 1 {
+                placed_point(&got)
+            } else {
+                got.last().map(|b| b.end.xyz)
+            };
+            let (Some(p), Some(q)) = (placed_point(&src), q) else {
+                continue;
+            };
+            pairs.push((line, p, q, src, got));
+        }
+        let e = predict(&app, &pairs.iter().map(|x| x.1).collect::<Vec<_>>()).await;
+        let mut worst: f64 = 0.0;
+        // Axes not placed before the first line that names them keep the reader's guess.
+        let first_z = c
+            .text
+            .lines()
+            .position(|l| {
+                !l.trim_start().starts_with(';') && word_spans(l).iter().any(|s| s.letter == 'Z')
+            })
+            .unwrap()
+            + 1;
+        for ((line, p, q, _, _), e) in pairs.iter().zip(&e) {
+            if *line < first_z {
+                continue;
+            }
+            let miss = dist(*q, sub(*p, *e));
+            assert!(
+                miss <= tol + ROUNDING_MM,
+                "{} line {line}: q {q:?}, p - e(p) {:?}",
+                c.name,
+                sub(*p, *e)
+            );
+            worst = worst.max(miss);
+        }
+        println!(
+            "{}: goal |q - (p - e(p))| <= {:.1} µm (+{:.3} µm rounding); ours max {:.3} µm over {} \
+             points; max_shift {:.2} µm; {} -> {} blocks",
+            c.name,
+            tol * 1e3,
+            ROUNDING_MM * 1e3,
+            worst * 1e3,
+            pairs.len(),
+            b["max_shift_mm"].as_f64().unwrap() * 1e3,
+            n_lines,
+            b["blocks"]
+        );
+        // Split moves: the original path sampled densely, compensated through predict, lies
+        // within the tolerance of the emitted polyline.
+        for (line, _, _, src, got) in &pairs {
+            let [o] = src.as_slice() else { continue };
+            if got.len() < 2 || o.feed == Feed::Rapid {
+                continue;
+            }
+            split_lines_checked += 1;
+            let samples: Vec<[f64; 3]> = (0..=400)
+                .map(|i| {
+                    let t = i as f64 / 400.0;
+                    match o.motion {
+                        Motion::Arc {
+                            plane,
+                            center,
+                            sweep_rad,
+                        } => arc_point(o, plane, center, sweep_rad, t),
+                        _ => {
+                            [0, 1, 2].map(|k| o.start.xyz[k] + (o.end.xyz[k] - o.start.xyz[k]) * t)
+                        }
+                    }
+                })
+                .collect();
+            let es = predict(&app, &samples).await;
+            let mut far: f64 = 0.0;
+            for (p, e) in samples.iter().zip(&es) {
+                let c = sub(*p, *e);
+                let d = got
+                    .iter()
+                    .map(|g| to_segment(c, g.start.xyz, g.end.xyz))
+                    .fold(f64::INFINITY, f64::min);
+                far = far.max(d);
+            }
+            println!(
+                "{} line {line}: split into {} G1 moves; goal <= {:.1} µm from the compensated \
+                 path, ours {:.3} µm",
+                c.name,
+                got.len(),
+                tol * 1e3,
+                far * 1e3
+            );
+            assert!(far <= tol + ROUNDING_MM, "{} line {line}: {far} mm", c.name);
+        }
+    }
+    assert!(split_lines_checked > 0, "no split line was exercised");
+}
+on_both_backends!(programs_match_the_predict_route);
+
+async fn text_plain_and_points(app: TestApp) {
+    machine_with_map(&app).await;
+    let c = &cases()[0];
+    let body = json!({"gcode": c.text, "work_offsets": c.offsets, "tool_lengths": c.tools});
+    let json_answer: Value = app.post_json(PROGRAM, &body).await.json().await.unwrap();
+    let r = app
+        .client
+        .post(app.url(PROGRAM))
+        .header("accept", "text/plain")
+        .json(&body)
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 200);
+    assert_eq!(
+        r.headers()["content-type"].to_str().unwrap(),
+        "text/plain; charset=utf-8"
+    );
+    let n: usize = r.headers()["x-truecut-warnings"]
+        .to_str()
+        .unwrap()
+        .parse()
+        .unwrap();
+    let warnings = json_answer["warnings"].as_array().unwrap();
+    assert_eq!(n, warnings.len());
+    assert!(n > 0);
+    let text = r.text().await.unwrap();
+    assert!(text.is_ascii(), "controls read ASCII: {text}");
+    let lines: Vec<&str> = text.lines().collect();
+    assert_eq!(lines[0], "%");
+    assert!(lines[1].starts_with("O2041"));
+    assert!(lines[2].starts_with("(TRUECUT"), "{}", lines[2]);
+    let comments = lines
+        .iter()
+        .filter(|l| l.starts_with("(TRUECUT") || l.starts_with("(line"))
+        .count();
+    assert!(comments > n / 2, "warnings as comments: {comments} of {n}");
+    // The text form parses and, without the comment lines, is the JSON form's program.
+    parse_with(&text, &read_options(c)).unwrap();
+    let stripped: Vec<&str> = lines[..2].iter().chain(&lines[3 + n..]).copied().collect();
+    assert_eq!(
+        stripped.join("\n") + "\n",
+        json_answer["gcode"].as_str().unwrap()
+    );
+
+    // Points form: JSON and CSV against predict.
+    let pts = vec![
+        [300.0, 200.0, 250.0],
+        [650.0, 420.0, 120.0],
+        [900.0, 10.0, 10.0],
+    ];
+    let e = predict(&app, &pts).await;
+    let r = app.post_json(POINTS, &json!({"points": pts})).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    let got: Vec<[f64; 3]> = serde_json::from_value(b["points"].clone()).unwrap();
+    for i in 0..3 {
+        assert!(dist(got[i], sub(pts[i], e[i])) < 1e-12);
+    }
+    assert_eq!(b["out_of_box"], json!([false, false, true]));
+    let csv = "x_mm,y_mm,z_mm\n300,200,250\n650,420,120\n900,10,10\n";
+    let r = app.post_raw(POINTS, "text/csv", csv).await;
+    assert_eq!(r.status(), 200);
+    assert!(
+        r.headers()["content-type"]
+            .to_str()
+            .unwrap()
+            .starts_with("text/csv")
+    );
+    let text = r.text().await.unwrap();
+    let mut rows = text.lines();
+    assert_eq!(rows.next(), Some("x_mm,y_mm,z_mm"));
+    for (i, row) in rows.enumerate() {
+        let v: Vec<f64> = row.split(',').map(|x| x.parse().unwrap()).collect();
+        assert!(dist([v[0], v[1], v[2]], sub(pts[i], e[i])) < 1e-6, "{row}");
+    }
+    let r = app.post_raw(POINTS, "text/csv", "x_mm,y_mm\n1,2\n").await;
+    assert_problem(r, 400, &["z"]).await;
+    let r = app.post_raw(POINTS, "application/xml", "<p/>").await;
+    assert_problem(r, 415, &["text/csv"]).await;
+}
+on_both_backends!(text_plain_and_points);
+
+async fn refusals(app: TestApp) {
+    let g = json!({"gcode": "G0 X1 Y1 Z1"});
+    let r = app
+        .post_json("/v1/machines/nope/compensated-program", &g)
+        .await;
+    assert_problem(r, 404, &["nope"]).await;
+    let r = app.put_json("/v1/machines/m", &machine_xyz()).await;
+    assert!(r.status().is_success());
+    // No map: volumetric asked → 409; nothing asked → 400.
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": "G0 X1", "volumetric": true}))
+        .await;
+    assert_problem(r, 409, &["volumetric-map"]).await;
+    let r = app.post_json(PROGRAM, &g).await;
+    assert_problem(r, 400, &["nothing to do"]).await;
+    let r = app
+        .post_json(POINTS, &json!({"points": [[1.0, 2.0, 3.0]]}))
+        .await;
+    assert_problem(r, 409, &["volumetric-map"]).await;
+    machine_with_map(&app).await;
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": "G0 X1", "volumetric": false}))
+        .await;
+    assert_problem(r, 400, &["nothing to do"]).await;
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": "G0 X1", "contour": true}))
+        .await;
+    assert_problem(r, 422, &["not available yet"]).await;
+    for tol in [1e-6, 0.2] {
+        let r = app
+            .post_json(PROGRAM, &json!({"gcode": "G0 X1", "tolerance_mm": tol}))
+            .await;
+        assert_problem(r, 400, &["tolerance_mm"]).await;
+    }
+    let r = app.post_json(PROGRAM, &json!({"gcode": "  \n"})).await;
+    assert_problem(r, 400, &["gcode is empty"]).await;
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": "G0 X1", "tolerence_mm": 0.01}))
+        .await;
+    assert_problem(r, 400, &["tolerence_mm"]).await;
+    let r = app
+        .post_json(
+            PROGRAM,
+            &json!({"gcode": "G0 X1 Y1 Z300\nG1 X10 F100 M8", "strict": true}),
+        )
+        .await;
+    assert_problem(r, 422, &["line 2", "M8"]).await;
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": "G0 X1\nG12.1"}))
+        .await;
+    assert_problem(r, 422, &["line 2", "G12.1"]).await;
+    let r = app
+        .post_json(POINTS, &json!({"points": [[1.0, 2.0]]}))
+        .await;
+    assert_eq!(r.status(), 400);
+}
+on_both_backends!(refusals);
