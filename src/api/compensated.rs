@@ -17,9 +17,10 @@ use super::contour::ContourRequest;
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, decode_json, is_csv_body, read_body};
 use super::id::{Id, PathIds};
+use super::lookup::require_machine_def;
 use super::volumetric::{MAX_POINTS, load_map};
 use crate::cam::{self, DEFAULT_TOLERANCE_MM};
-use crate::motion::{ReadOptions, check_period};
+use crate::motion::{DEFAULT_PERIOD_S, ReadOptions, check_period, machine_for_simulation};
 use crate::volumetric::VolumetricMap;
 
 /// Routes of this resource.
@@ -47,7 +48,8 @@ pub struct ProgramRequest {
     /// Volumetric pre-compensation (default: true when the machine has a map).
     #[serde(default)]
     pub volumetric: Option<bool>,
-    /// Contour pre-distortion (not available yet).
+    /// Contour pre-distortion: the program rewritten as G1 points (same feeds) that the
+    /// machine's servo model follows along the original path (default false).
     #[serde(default)]
     pub contour: Option<bool>,
     /// Interpolation period of the contour model, s.
@@ -97,6 +99,25 @@ pub struct ProgramResponse {
     pub blocks: usize,
     /// 1-based source line of every output line.
     pub source_lines: Vec<usize>,
+    /// With `contour`: the simulated contour error against the original path, mm.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub contour: Option<ContourFigures>,
+}
+
+/// Contour error of the service's simulation against the original program's path, before
+/// (the original program) and after (the returned program), mm.
+#[derive(Debug, Serialize)]
+pub struct ContourFigures {
+    /// RMS distance of the simulated tool tip to the original path, original program, mm.
+    pub original_rms_mm: f64,
+    /// Max distance, original program, mm.
+    pub original_max_mm: f64,
+    /// RMS distance with the returned program, mm.
+    pub compensated_rms_mm: f64,
+    /// Max distance with the returned program, mm.
+    pub compensated_max_mm: f64,
+    /// Pre-distortion iterations taken.
+    pub iterations: usize,
 }
 
 /// The machine's map, or 409 when it has none.
@@ -198,19 +219,61 @@ async fn compensated_program(
             )
         }));
     }
-    if contour {
-        return Err(ApiError::unprocessable(
-            "contour pre-compensation is not available yet on this service: send \"contour\": \
-             false (volumetric compensation is available)",
-        ));
-    }
-    let map = match map {
-        Some(m) => m,
-        None => map_for(&state, &machine).await?,
+    let map = if volumetric {
+        Some(match map {
+            Some(m) => m,
+            None => map_for(&state, &machine).await?,
+        })
+    } else {
+        None
     };
-    let out = state
+    let sim = if contour {
+        let def = require_machine_def(&state, &machine).await?;
+        Some(machine_for_simulation(&machine, &def)?)
+    } else {
+        None
+    };
+    let period_s = req.period_s.unwrap_or(DEFAULT_PERIOD_S);
+    let (out, figures) = state
         .jobs
-        .run(move || cam::compensate_program(&req.gcode, &options, &map, tolerance_mm))
+        .run(move || -> Result<_, cam::Error> {
+            let mut out = match &map {
+                Some(map) => Some(cam::compensate_program(
+                    &req.gcode,
+                    &options,
+                    map,
+                    tolerance_mm,
+                )?),
+                None => None,
+            };
+            let Some(machine) = sim else {
+                return Ok((out.expect("volumetric or contour"), None));
+            };
+            let text = out
+                .as_ref()
+                .map_or(req.gcode.as_str(), |o| o.gcode.as_str());
+            let (mut c, p) = cam::contour_program(text, &options, &machine, period_s)?;
+            if let Some(v) = out.take() {
+                // The reader's warnings were said once by the volumetric pass.
+                let mut warnings = v.warnings;
+                warnings.extend(p.notes.iter().cloned());
+                c.warnings = warnings;
+                c.max_shift_mm = v.max_shift_mm;
+                c.source_lines = c
+                    .source_lines
+                    .iter()
+                    .map(|&l| v.source_lines.get(l - 1).copied().unwrap_or(l))
+                    .collect();
+            }
+            let figures = ContourFigures {
+                original_rms_mm: p.original.rms_mm,
+                original_max_mm: p.original.max_mm,
+                compensated_rms_mm: p.compensated.rms_mm,
+                compensated_max_mm: p.compensated.max_mm,
+                iterations: p.iterations,
+            };
+            Ok((c, Some(figures)))
+        })
         .await??;
     if wants_text(&headers) {
         let text = with_warning_comments(&out.gcode, &out.warnings);
@@ -226,6 +289,7 @@ async fn compensated_program(
         max_shift_mm: out.max_shift_mm,
         blocks: out.blocks,
         source_lines: out.source_lines,
+        contour: figures,
     })
     .into_response())
 }

@@ -335,6 +335,11 @@ impl From<cam::Error> for ApiError {
                 ApiError::bad_request(e.to_string())
             }
             E::TooLong { .. } => ApiError::unprocessable(e.to_string()),
+            E::Contour(cam::predistort::Error::Motion(inner)) => inner.into(),
+            E::Contour(cam::predistort::Error::Option { .. }) => {
+                ApiError::bad_request(e.to_string())
+            }
+            E::Contour(_) => ApiError::unprocessable(e.to_string()),
         }
     }
 }

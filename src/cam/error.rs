@@ -50,4 +50,7 @@ pub enum Error {
         /// Most blocks written.
         limit: usize,
     },
+    /// The contour pre-distortion could not be made (names the line or the option).
+    #[error(transparent)]
+    Contour(#[from] super::predistort::Error),
 }

@@ -9,24 +9,24 @@
 //! `predistort` (contour-error pre-compensation) rewrites the program as G1 points that the
 //! emitter writes through [`LinePlan::Points`].
 
+mod contour;
 mod emit;
 mod error;
 mod field;
 mod paths;
 mod points;
-mod program;
 pub mod predistort;
+mod program;
 #[cfg(test)]
 mod tests;
 
+pub use contour::{MAX_ITERATIONS, contour_program};
 pub use emit::{Emitter, LineInfo, LinePlan, decimals, format_number, rewrite, rounding_mm};
 pub use error::Error;
 pub use field::ErrorField;
 pub use paths::{CompensatedArc, Shifter, arc_point, arc_points, linear_points};
 pub use points::{CompensatedPoints, compensate_points, points_from_csv, points_to_csv};
-pub use predistort::{
-    ErrorStats, PredistortOptions, PredistortPoint, Predistorted, predistort,
-};
+pub use predistort::{ErrorStats, PredistortOptions, PredistortPoint, Predistorted, predistort};
 pub use program::{
     Compensated, DEFAULT_TOLERANCE_MM, MAX_OUTPUT_BLOCKS, MAX_TOLERANCE_MM, MIN_TOLERANCE_MM,
     check_tolerance, compensate_program,

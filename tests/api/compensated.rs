@@ -354,10 +354,14 @@ async fn refusals(app: TestApp) {
         .post_json(PROGRAM, &json!({"gcode": "G0 X1", "volumetric": false}))
         .await;
     assert_problem(r, 400, &["nothing to do"]).await;
+    // The pre-distortion does not model dwells (or rotary axes): 422 naming the line.
     let r = app
-        .post_json(PROGRAM, &json!({"gcode": "G0 X1", "contour": true}))
+        .post_json(
+            PROGRAM,
+            &json!({"gcode": "G1 X5 F600\nG4 P1\nG1 X10", "contour": true, "volumetric": false}),
+        )
         .await;
-    assert_problem(r, 422, &["not available yet"]).await;
+    assert_problem(r, 422, &["line 2"]).await;
     for tol in [1e-6, 0.2] {
         let r = app
             .post_json(PROGRAM, &json!({"gcode": "G0 X1", "tolerance_mm": tol}))
@@ -387,3 +391,92 @@ async fn refusals(app: TestApp) {
     assert_eq!(r.status(), 400);
 }
 on_both_backends!(refusals);
+
+/// A Fanuc-style circle program (R 25 mm at F 2000, tangent lead-in) through the contour
+/// pre-compensation, then checked independently: the returned text is read, interpolated and
+/// simulated by the library here, and its tool tip measured against the *original* path.
+/// Goals (issue 14): RMS <= 0.1x the original's (gate 0.3x), max <= 0.3x.
+async fn contour_precompensation(app: TestApp) {
+    use truecut::motion::{
+        DEFAULT_PERIOD_S, Machine, contour_error, interpolate, simulate_machine,
+    };
+    let cascade = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    let def = json!({"name": "demo cascade", "kinematics": "xyz",
+        "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
+    let r = app.put_json("/v1/machines/m", &def).await;
+    assert!(r.status().is_success());
+    let original = "%\nO1001 (CIRCLE R25 F2000)\nN10 G21 G90 G17 G94\nN20 M3 S8000 (SPINDLE)\n\
+                    N30 G1 X0 Y15. F2000\nN40 G3 X0 Y15. I-25. J0\nN50 G3 X0 Y15. I-25. J0\n\
+                    N60 G1 Y30.\nN70 M5\nM30\n%\n";
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": original, "contour": true}))
+        .await;
+    assert_eq!(r.status(), 200);
+    let body: Value = r.json().await.unwrap();
+    let c = &body["contour"];
+    let ratio_rms =
+        c["compensated_rms_mm"].as_f64().unwrap() / c["original_rms_mm"].as_f64().unwrap();
+    let ratio_max =
+        c["compensated_max_mm"].as_f64().unwrap() / c["original_max_mm"].as_f64().unwrap();
+    let text = body["gcode"].as_str().unwrap();
+    // Structure: header, comments and M words pass through; the motion is G1 points with F.
+    for keep in [
+        "%",
+        "O1001 (CIRCLE R25 F2000)",
+        "N20 M3 S8000 (SPINDLE)",
+        "N70 M5",
+        "M30",
+    ] {
+        assert!(text.lines().any(|l| l == keep), "{keep} lost:\n{text}");
+    }
+    assert!(!text.contains("G3"), "arcs must become G1 points");
+
+    // Independent check of the figures on the text itself.
+    let m = Machine::from_json(&def).unwrap();
+    let read = |t: &str| parse_with(t, &ReadOptions::default()).unwrap().0;
+    let cmd0 = interpolate(&read(original), &m, DEFAULT_PERIOD_S, 2_000_000).unwrap();
+    let act0 = simulate_machine(&m, &cmd0).unwrap();
+    let before = contour_error(&m.kinematics, &cmd0.axes, &act0, &cmd0.corners);
+    let cmd1 = interpolate(&read(text), &m, DEFAULT_PERIOD_S, 2_000_000).unwrap();
+    let mut act1 = simulate_machine(&m, &cmd1).unwrap();
+    let n = cmd0.t.len();
+    let extra = cmd1.t.len() as i64 - n as i64;
+    for col in &mut act1 {
+        let last = *col.last().unwrap();
+        col.resize(n, last);
+    }
+    let after = contour_error(&m.kinematics, &cmd0.axes, &act1, &cmd0.corners);
+    println!(
+        "contour pre-compensation, circle R25 F2000: original RMS {:.2} / max {:.2} um; returned \
+         program RMS {:.2} / max {:.2} um; ratios {:.3} / {:.3} (goal RMS <= 0.1x, gate 0.3x; \
+         max <= 0.3x); route says {ratio_rms:.3} / {ratio_max:.3}; {} iterations; duration \
+         {extra:+} periods",
+        before.rms * 1e3,
+        before.max * 1e3,
+        after.rms * 1e3,
+        after.max * 1e3,
+        after.rms / before.rms,
+        after.max / before.max,
+        c["iterations"]
+    );
+    assert!(after.rms <= 0.3 * before.rms && after.max <= 0.3 * before.max);
+    assert!(
+        (after.rms / before.rms - ratio_rms).abs() < 0.02,
+        "route's figure disagrees"
+    );
+    assert!(
+        extra <= 2,
+        "the returned program is slower: {extra} periods"
+    );
+    // No block slower than the original feed.
+    let mut feeds = 0;
+    for l in text.lines() {
+        let code = l.split('(').next().unwrap();
+        if let Some(f) = code.split_whitespace().find_map(|w| w.strip_prefix('F')) {
+            feeds += 1;
+            assert!(f.parse::<f64>().unwrap() >= 2000.0 - 1e-9, "{l}");
+        }
+    }
+    assert!(feeds > 10, "every point carries its feed:\n{text}");
+}
+on_both_backends!(contour_precompensation);
