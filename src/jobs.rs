@@ -127,7 +127,7 @@ pub enum Cancel {
 }
 
 /// How often a running job's own instance looks for a cancellation made on another one.
-const CANCEL_POLL: Duration = Duration::from_millis(250);
+pub const CANCEL_POLL: Duration = Duration::from_millis(250);
 
 /// Unix ms as RFC 3339 (UTC), for the job times.
 fn rfc3339(ms: i64) -> Option<String> {
