@@ -153,7 +153,7 @@ fn with_warning_comments(gcode: &str, warnings: &[String]) -> String {
         }
     }
     let mut comments = vec![format!(
-        "(TRUECUT VOLUMETRIC COMPENSATION: {} WARNINGS)",
+        "(TRUECUT COMPENSATION: {} WARNINGS)",
         warnings.len()
     )];
     for w in warnings {
