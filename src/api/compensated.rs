@@ -13,7 +13,7 @@ use axum::routing::post;
 use serde::{Deserialize, Serialize};
 
 use super::AppState;
-use super::contour::ContourRequest;
+use super::contour::reader_options;
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, decode_json, is_csv_body, read_body};
 use super::id::{Id, PathIds};
@@ -74,15 +74,12 @@ pub struct ProgramRequest {
 
 impl ProgramRequest {
     fn read_options(&self) -> Result<ReadOptions, ApiError> {
-        ContourRequest {
-            gcode: String::new(),
-            period_s: None,
-            strict: self.strict,
-            work_offsets: self.work_offsets.clone(),
-            tool_lengths: self.tool_lengths.clone(),
-            home: self.home,
-        }
-        .read_options()
+        reader_options(
+            self.strict,
+            &self.work_offsets,
+            &self.tool_lengths,
+            self.home,
+        )
     }
 }
 

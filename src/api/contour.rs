@@ -53,49 +53,66 @@ pub struct ContourRequest {
 }
 
 impl ContourRequest {
-    /// The reader's options, checked once at the door: offset keys G54..G59, tool keys
-    /// non-negative integers, every number finite (400 naming the field otherwise).
+    /// The reader's options (see [`reader_options`]).
     pub fn read_options(&self) -> Result<ReadOptions, ApiError> {
-        let finite = |field: String, v: &[f64]| {
-            if v.iter().all(|x| x.is_finite()) {
-                Ok(())
-            } else {
-                Err(ApiError::bad_request(format!(
-                    "{field}: values must be finite mm"
-                )))
-            }
-        };
-        let mut opts = ReadOptions {
-            strict: self.strict,
-            home_mm: self.home,
-            ..ReadOptions::default()
-        };
-        if let Some(h) = &self.home {
-            finite("home".into(), h)?;
+        reader_options(
+            self.strict,
+            &self.work_offsets,
+            &self.tool_lengths,
+            self.home,
+        )
+    }
+}
+
+/// The reader's options from the body fields every program-reading route shares
+/// (contour-error, compensated-program, gap-diagnosis with `gcode`), checked once at the
+/// door: offset keys G54..G59, tool keys non-negative integers, every number finite (400
+/// naming the field otherwise).
+pub fn reader_options(
+    strict: bool,
+    work_offsets: &BTreeMap<String, [f64; 3]>,
+    tool_lengths: &BTreeMap<String, f64>,
+    home: Option<[f64; 3]>,
+) -> Result<ReadOptions, ApiError> {
+    let finite = |field: String, v: &[f64]| {
+        if v.iter().all(|x| x.is_finite()) {
+            Ok(())
+        } else {
+            Err(ApiError::bad_request(format!(
+                "{field}: values must be finite mm"
+            )))
         }
-        for (key, off) in &self.work_offsets {
-            let idx = ["G54", "G55", "G56", "G57", "G58", "G59"]
-                .iter()
-                .position(|k| k == key)
-                .ok_or_else(|| {
-                    ApiError::bad_request(format!(
-                        "work_offsets.{key}: keys are G54, G55, G56, G57, G58 or G59"
-                    ))
-                })?;
-            finite(format!("work_offsets.{key}"), off)?;
-            opts.work_offsets_mm[idx] = Some(*off);
-        }
-        for (key, len) in &self.tool_lengths {
-            let number: u32 = key.parse().map_err(|_| {
+    };
+    let mut opts = ReadOptions {
+        strict,
+        home_mm: home,
+        ..ReadOptions::default()
+    };
+    if let Some(h) = &home {
+        finite("home".into(), h)?;
+    }
+    for (key, off) in work_offsets {
+        let idx = ["G54", "G55", "G56", "G57", "G58", "G59"]
+            .iter()
+            .position(|k| k == key)
+            .ok_or_else(|| {
                 ApiError::bad_request(format!(
-                    "tool_lengths.{key}: keys are H numbers such as \"1\""
+                    "work_offsets.{key}: keys are G54, G55, G56, G57, G58 or G59"
                 ))
             })?;
-            finite(format!("tool_lengths.{key}"), &[*len])?;
-            opts.tool_lengths_mm.insert(number, *len);
-        }
-        Ok(opts)
+        finite(format!("work_offsets.{key}"), off)?;
+        opts.work_offsets_mm[idx] = Some(*off);
     }
+    for (key, len) in tool_lengths {
+        let number: u32 = key.parse().map_err(|_| {
+            ApiError::bad_request(format!(
+                "tool_lengths.{key}: keys are H numbers such as \"1\""
+            ))
+        })?;
+        finite(format!("tool_lengths.{key}"), &[*len])?;
+        opts.tool_lengths_mm.insert(number, *len);
+    }
+    Ok(opts)
 }
 
 async fn contour_error(

@@ -11,7 +11,7 @@ use serde::Deserialize;
 use serde_json::Value;
 
 use super::AppState;
-use super::contour::ContourRequest;
+use super::contour::reader_options;
 use super::error::{ApiError, ApiResult};
 use super::extract::ApiJson;
 use super::lookup::{require_machine, require_measurement, require_surface};
@@ -112,15 +112,7 @@ async fn motion_from_program(
         ApiError::bad_request("period_s is missing: give the sample period in seconds, e.g. 0.001")
     })?;
     check_period(period_s)?;
-    let options = ContourRequest {
-        gcode: String::new(),
-        period_s: None,
-        strict: req.strict,
-        work_offsets: req.work_offsets.clone(),
-        tool_lengths: req.tool_lengths.clone(),
-        home: req.home,
-    }
-    .read_options()?;
+    let options = reader_options(req.strict, &req.work_offsets, &req.tool_lengths, req.home)?;
     let n = req.measured.as_ref().map_or(0, Vec::len);
     if n > MAX_SYNC_SAMPLES {
         return Err(ApiError::bad_request(format!(
