@@ -89,7 +89,13 @@ pub fn draw(kind: usize, servo: &[ServoAxis], duration_s: f64, rng: &mut impl Rn
             (0..d)
                 .map(|_| [4.0, 5.0, 8.0, 10.0, 16.0, 20.0][rng.random_range(0..6)])
                 .collect(),
-            (0..d).map(|_| rng.random_range(0.001..0.005)).collect(),
+            // The third axis of the self-check programs rises at most 5 mm, less than one
+            // pitch: a cyclic error there is a smooth offset in the data, not a cyclic one, and
+            // no diagnosis can name it. Planted on X and Y only (the draw is kept, so the other
+            // cases' random streams do not change).
+            (0..d)
+                .map(|k| rng.random_range(0.001..0.005) * if k < 2 { 1.0 } else { 0.0 })
+                .collect(),
             (0..d)
                 .map(|_| rng.random_range(0.0..std::f64::consts::TAU))
                 .collect(),

@@ -17,7 +17,7 @@ fn small_blind_self_check_meets_the_goals() {
 }
 
 /// The goals on a larger blind self-check (45 cases, five of each truth kind):
-/// verdict accuracy ≥ 95 % (not met: asserted ≥ 90 %), `where` right on ≥ 90 % of friction and backlash cases, median
+/// verdict accuracy ≥ 95 %, `where` right on ≥ 90 % of friction and backlash cases, median
 /// validation shrink ≥ 0.8, no false alarm.
 #[test]
 fn blind_self_check_goals_where_and_verdicts() {
@@ -44,11 +44,11 @@ fn blind_self_check_goals_where_and_verdicts() {
         100.0 * where_rate,
         r.median_shrink
     );
-    // the goal is 95 %; this run reaches 92.5 % (37/40: both cyclic misses are 3-axis
-    // cases whose Z travels less than one pitch, so its cyclic error is not observable as one;
-    // one friction case on a loop without integrator reads as backlash). The bar below guards
-    // what is reached, the line above prints the goal beside it.
-    assert!(r.accuracy >= 0.9, "accuracy {}", r.accuracy);
+    // The goal is 95 %; this run reaches 97.5 % (39/40; the miss: Coulomb friction
+    // under a velocity loop without integrator, a constant lag while moving that flips at
+    // reversals, reads as backlash). Before cyclic errors were planted on X and Y only (see
+    // `truth::draw`), two 3-axis cyclic cases missed: their Z rose less than one pitch.
+    assert!(r.accuracy >= 0.95, "accuracy {}", r.accuracy);
     assert!(where_rate >= 0.9, "where {where_rate}");
     assert!(r.median_shrink >= 0.8, "median shrink {}", r.median_shrink);
     assert_eq!(r.false_alarm_rate, 0.0);
