@@ -98,12 +98,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             if verbose {
                 for c in &report.cases {
                     println!(
-                        "{:<20} -> {:<20} shrink {:>6.1} %  {:?}, noise {:.2} µm",
+                        "{:<20} -> {:<20} shrink {:>6.1} %  {:?}, noise {:.2} µm  where {} {}",
                         c.truth,
                         c.verdict.name(),
                         100.0 * c.shrink,
                         c.program,
-                        c.sigma * 1e3
+                        c.sigma * 1e3,
+                        c.where_ok.map_or("-", |ok| if ok { "ok" } else { "MISS" }),
+                        c.where_top
                     );
                 }
             }
