@@ -55,9 +55,8 @@ pub async fn start(config: &Config) -> Result<Server> {
                 config.lease_s
             )
         })?;
-    let jobs =
-        JobPool::start_with_lease(store.clone(), config.worker_count(), config.queue, lease)
-            .await?;
+    let jobs = JobPool::start_with_lease(store.clone(), config.worker_count(), config.queue, lease)
+        .await?;
     let state = AppState {
         store,
         jobs,

@@ -18,11 +18,11 @@ use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, decode_json, is_json, read_body};
 use super::lookup::{require_machine, require_measurement, require_surface};
 use crate::api::id::{Id, PathIds};
-use crate::jobs::{Progress, Runner};
 use crate::gap::{
     self, GapRequest, PartBlock, PartGrid, ProgramCommand, diagnose_motion_program,
     diagnose_motion_request, motion_inputs, part_answer,
 };
+use crate::jobs::{Progress, Runner};
 use crate::motion::{
     Machine, ServoAxes, check_period, interpolate, machine_for_simulation, parse_with, servo_axes,
     stored_definition,
@@ -113,9 +113,8 @@ async fn gap_diagnosis(
                 motion_inputs(&m, &req)?;
                 let input = serde_json::to_string(&StoredGap {
                     machine: machine.to_string(),
-                    body: String::from_utf8(body.to_vec()).map_err(|_| {
-                        ApiError::bad_request("the request body is not UTF-8 JSON")
-                    })?,
+                    body: String::from_utf8(body.to_vec())
+                        .map_err(|_| ApiError::bad_request("the request body is not UTF-8 JSON"))?,
                 })
                 .map_err(ApiError::internal)?;
                 let id = state.jobs.enqueue(JOB_KIND, input).await?;

@@ -39,7 +39,10 @@ pub fn runners(state: &AppState) -> HashMap<String, Runner> {
             super::decomposition::JOB_KIND.to_string(),
             super::decomposition::runner(),
         ),
-        (super::gap::JOB_KIND.to_string(), super::gap::runner(state.clone())),
+        (
+            super::gap::JOB_KIND.to_string(),
+            super::gap::runner(state.clone()),
+        ),
         (
             super::step_error::TRAINING_JOB.to_string(),
             super::step_error::training_runner(state.clone()),

@@ -82,7 +82,11 @@ pub async fn list(state: &AppState, m: &ModelRef<'_>) -> ApiResult<Value> {
 
 /// `POST .../rollback {"version": n}`: serves version `n` from now on (every instance), and
 /// answers as `versions` does.
-pub async fn rollback(state: &AppState, m: &ModelRef<'_>, req: RollbackRequest) -> ApiResult<Value> {
+pub async fn rollback(
+    state: &AppState,
+    m: &ModelRef<'_>,
+    req: RollbackRequest,
+) -> ApiResult<Value> {
     if req.version < 1 {
         return Err(ApiError::bad_request(format!(
             "version must be a version number from {}/versions (1 or more), got {}",

@@ -155,7 +155,10 @@ impl JobPool {
                     tracing::error!("heartbeat failed: {e:#}");
                     continue;
                 }
-                match hb_store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED).await {
+                match hb_store
+                    .reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED)
+                    .await
+                {
                     Ok(r) => log_reaped("jobs of instances that are gone: re-queued or failed", r),
                     Err(e) => tracing::error!("cannot look for gone instances: {e:#}"),
                 }
@@ -442,4 +445,3 @@ impl JobPool {
         Ok(cut.requeued + cut.failed)
     }
 }
-

@@ -416,7 +416,9 @@ impl ModelStore {
                 match std::fs::read(path) {
                     Ok(b) => return Ok(Some((b, path.clone()))),
                     Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
-                    Err(e) => return Err(e).with_context(|| format!("cannot read {}", path.display())),
+                    Err(e) => {
+                        return Err(e).with_context(|| format!("cannot read {}", path.display()));
+                    }
                 }
                 if version != 1 {
                     break;

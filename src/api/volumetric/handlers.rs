@@ -203,7 +203,9 @@ pub(super) async fn map_versions(
     PathIds([machine]): PathIds<1>,
 ) -> ApiResult<ApiJson<serde_json::Value>> {
     require_machine(&state, &machine).await?;
-    Ok(ApiJson(model_versions::list(&state, &map_ref(&machine)).await?))
+    Ok(ApiJson(
+        model_versions::list(&state, &map_ref(&machine)).await?,
+    ))
 }
 
 pub(super) async fn map_rollback(
