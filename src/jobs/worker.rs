@@ -58,21 +58,28 @@ pub(super) async fn claim_loop(inner: Arc<Inner>) {
         .map(|r| r.keys().cloned().collect())
         .unwrap_or_default();
     loop {
-        let Ok(admitted) = inner.admission.clone().acquire_owned().await else {
+        // Claim only when a worker looks free, without holding a permit while asking the
+        // database (a held permit would turn synchronous requests away).
+        if inner.admission.is_closed() {
             return;
-        };
-        let Ok(worker) = inner.workers.clone().acquire_owned().await else {
-            return;
-        };
-        match inner.store.claim_job(&kinds).await {
-            Ok(Some(job)) => {
-                tokio::spawn(run_claimed(inner.clone(), job, (admitted, worker)));
-                continue;
-            }
-            Ok(None) => {}
-            Err(e) => tracing::error!("cannot claim a job: {e:#}"),
         }
-        drop((admitted, worker));
+        if inner.workers.available_permits() > 0 && inner.admission.available_permits() > 0 {
+            match inner.store.claim_job(&kinds).await {
+                Ok(Some(job)) => {
+                    // A synchronous request may have taken the slot meanwhile: wait for it.
+                    let Ok(admitted) = inner.admission.clone().acquire_owned().await else {
+                        return;
+                    };
+                    let Ok(worker) = inner.workers.clone().acquire_owned().await else {
+                        return;
+                    };
+                    tokio::spawn(run_claimed(inner.clone(), job, (admitted, worker)));
+                    continue;
+                }
+                Ok(None) => {}
+                Err(e) => tracing::error!("cannot claim a job: {e:#}"),
+            }
+        }
         tokio::select! {
             () = inner.work.notified() => {}
             () = tokio::time::sleep(CLAIM_POLL) => {}
