@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::Value;
 
-use crate::instances::{PgSchema, seed, segments, start, train};
+use crate::instances::{PgSchema, seed, segments, start, train, train_long};
 
 const FLAGS: [&str; 4] = ["--workers", "1", "--lease-s", "1"];
 
@@ -151,7 +151,7 @@ async fn job_killed_mid_run(pg: Option<&PgSchema>) {
     let inst = start(dir.path(), url(pg), &FLAGS, &[]).await;
     seed(&inst).await;
     let long = segments(&inst, 40, 60).await;
-    let id = train(&inst, &long, 20_000).await;
+    let id = train_long(&inst, &long).await;
     inst.wait_job(&id, Duration::from_secs(30), |j| {
         j["state"] == "running" && j["progress"].as_f64().unwrap_or(0.0) > 0.0
     })

@@ -316,3 +316,17 @@ pub async fn train(inst: &Instance, segments: &Value, epochs: usize) -> String {
     assert_eq!(st, 202, "{r}");
     r["job"].as_str().unwrap().to_string()
 }
+
+/// Queues a training that runs until cancelled (the paper's preset: no early stopping,
+/// 20,000 epochs); the job id.
+pub async fn train_long(inst: &Instance, segments: &Value) -> String {
+    let (st, r) = inst
+        .send(
+            "POST",
+            "/v1/machines/m/surfaces/s/step-error-model",
+            &json!({"tool_radius": 5.0, "segments": segments, "epochs": 20000, "preset": "paper"}),
+        )
+        .await;
+    assert_eq!(st, 202, "{r}");
+    r["job"].as_str().unwrap().to_string()
+}

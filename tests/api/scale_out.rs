@@ -9,7 +9,7 @@ use std::time::{Duration, Instant};
 
 use serde_json::{Value, json};
 
-use crate::instances::{Instance, PgSchema, seed, segments, start, train};
+use crate::instances::{Instance, PgSchema, seed, segments, start, train, train_long};
 
 async fn pair(pg: &PgSchema, flags: &[&str]) -> (Instance, Instance, [tempfile::TempDir; 2]) {
     let dirs = [tempfile::tempdir().unwrap(), tempfile::tempdir().unwrap()];
@@ -110,12 +110,12 @@ async fn killing_an_instance_mid_job_requeues_only_its_jobs() {
     let (a, b, dirs) = pair(&pg, &flags).await;
     seed(&a).await;
     let long = segments(&a, 40, 60).await;
-    let job_a = train(&a, &long, 20_000).await;
+    let job_a = train_long(&a, &long).await;
     let ja = a
         .wait_job(&job_a, Duration::from_secs(30), |j| j["state"] == "running")
         .await;
     let on_a = ja["instance"].as_str().unwrap().to_string();
-    let job_b = train(&b, &long, 20_000).await;
+    let job_b = train_long(&b, &long).await;
     let jb = b
         .wait_job(&job_b, Duration::from_secs(30), |j| j["state"] == "running")
         .await;
