@@ -48,7 +48,7 @@ struct PartValidationBody {
     approach: Option<Vec<[f64; 3]>>,
 }
 
-/// Kind of the stored motion-diagnosis job (input: [`StoredGap`]).
+/// Kind of the stored motion-diagnosis job (input: the machine id and the request body).
 pub const JOB_KIND: &str = "gap-diagnosis";
 
 /// Input of a stored motion diagnosis: the machine and the request body as sent.

@@ -287,7 +287,7 @@ impl JobPool {
     ///
     /// Cancellation (`DELETE /v1/jobs/{id}`, [`JobPool::cancel`]): a job cancelled while
     /// queued never runs; a running one sees [`Progress::is_cancelled`] (set here, or within
-    /// [`CANCEL_POLL`] when the cancel came through another instance), and whatever it returns
+    /// [`CANCEL_POLL`](super::CANCEL_POLL) when the cancel came through another instance), and whatever it returns
     /// is dropped. A job that stores something (a model) must pass [`Progress::commit`] first.
     pub async fn submit(
         &self,

@@ -94,7 +94,7 @@ impl Progress {
     }
 }
 
-/// What [`JobPool::cancel`] did.
+/// What [`JobPool::cancel`](super::JobPool::cancel) did.
 #[derive(Clone, Debug)]
 pub enum Cancel {
     /// The job is now `cancelled` (its state as answered).

@@ -101,7 +101,7 @@ async fn load_model(
     Ok((reg, meta))
 }
 
-/// Kind of the stored training job (input: [`StoredTraining`]).
+/// Kind of the stored training job (input: machine, surface and the request body).
 pub const TRAINING_JOB: &str = "step_error_training";
 
 /// Input of a stored training job: where the model goes and the request body as sent.
