@@ -57,6 +57,13 @@ pub struct Config {
     /// recorded as failed.
     #[arg(long, default_value_t = 30, env = "TRUECUT_SHUTDOWN_GRACE_S")]
     pub shutdown_grace_s: u64,
+
+    /// Seconds of this instance's lease: it renews it every third of that, and when it
+    /// stops renewing (crash, kill, lost network) the other instances on the database
+    /// re-queue or fail its jobs once it has expired. Shorter: faster fail-over; too short
+    /// for the database's latency: live instances judged gone.
+    #[arg(long, default_value_t = 10.0, env = "TRUECUT_LEASE_S")]
+    pub lease_s: f64,
 }
 
 impl Config {
@@ -73,6 +80,7 @@ impl Config {
             max_body_bytes: DEFAULT_MAX_BODY_BYTES,
             body_timeout_s: 30.0,
             shutdown_grace_s: 30,
+            lease_s: 10.0,
         }
     }
 

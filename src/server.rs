@@ -40,12 +40,23 @@ pub fn load_tokens(config: &Config) -> Result<Tokens> {
     Ok(tokens)
 }
 
-/// Opens the store, starts the worker pool and serves the API on `config.addr`
+/// Opens the store, starts the worker pool (registering this instance and taking stored
+/// jobs from the shared queue) and serves the API on `config.addr`
 /// (port 0 picks a free port; see [`Server::addr`]).
 pub async fn start(config: &Config) -> Result<Server> {
     let tokens = load_tokens(config)?;
     let store = Store::open(&config.data_dir, config.database_url.as_deref()).await?;
-    let jobs = JobPool::start(store.clone(), config.worker_count(), config.queue).await?;
+    let lease = Duration::try_from_secs_f64(config.lease_s)
+        .ok()
+        .filter(|d| *d >= Duration::from_millis(300))
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "--lease-s must be at least 0.3 seconds, got {}",
+                config.lease_s
+            )
+        })?;
+    let jobs = JobPool::start_with_lease(store.clone(), config.worker_count(), config.queue, lease)
+        .await?;
     let state = AppState {
         store,
         jobs,
@@ -62,6 +73,7 @@ pub async fn start(config: &Config) -> Result<Server> {
                 )
             })?,
     };
+    state.jobs.serve(api::jobs::runners(&state));
     let app = api::router(state.clone());
     let listener = tokio::net::TcpListener::bind(config.addr)
         .await

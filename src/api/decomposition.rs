@@ -3,6 +3,8 @@
 //! (computed on the measurement's deviations, stored as its current decomposition).
 //! Also the one `From<signal::Error> for ApiError`.
 
+use std::sync::Arc;
+
 use axum::Router;
 use axum::extract::{Request, State};
 use axum::response::{IntoResponse, Response};
@@ -16,6 +18,7 @@ use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, check_finite, decode_json, read_body};
 use super::lookup::{require_measurement, require_surface};
 use crate::api::id::PathIds;
+use crate::jobs::{Progress, Runner};
 use crate::signal::{self, DecomposeParams, Method, decompose};
 
 /// Document kind under which a measurement's current decomposition is stored.
@@ -55,13 +58,28 @@ struct MeasurementRequest {
     params: DecomposeParams,
 }
 
-/// Runs a decomposition on the worker pool; a job (202) above [`MAX_SYNC`] samples.
+/// Kind of the stored decomposition job (its input: the `POST /v1/decompose` body).
+pub const JOB_KIND: &str = "decomposition";
+
+/// Runs a stored decomposition job on any instance: the input is the request body.
+pub fn runner() -> Runner {
+    Arc::new(|input: &str, p: &Progress| {
+        let r: DecomposeRequest = serde_json::from_str(input)
+            .map_err(|e| format!("the stored job input is not a decomposition request: {e}"))?;
+        p.set(0.05);
+        let d = decompose(&r.signal, r.method, &r.params).map_err(|e| e.to_string())?;
+        serde_json::to_value(&d).map_err(|e| e.to_string())
+    })
+}
+
+/// Runs a decomposition on the worker pool; above [`MAX_SYNC`] samples, when `job_input`
+/// (the request body) is given, a stored job (202) that any instance may run.
 async fn run(
     state: &AppState,
     x: Vec<f64>,
     method: Method,
     params: DecomposeParams,
-    allow_job: bool,
+    job_input: Option<&[u8]>,
 ) -> ApiResult<Result<Value, Response>> {
     if x.len() > signal::decompose::MAX_SAMPLES {
         return Err(ApiError::payload_too_large(format!(
@@ -70,15 +88,12 @@ async fn run(
             signal::decompose::MAX_SAMPLES
         )));
     }
-    if allow_job && x.len() > MAX_SYNC {
-        let id = state
-            .jobs
-            .submit("decomposition", move |p| {
-                p.set(0.05);
-                let d = decompose(&x, method, &params).map_err(|e| e.to_string())?;
-                serde_json::to_value(&d).map_err(|e| e.to_string())
-            })
-            .await?;
+    if let Some(body) = job_input
+        && x.len() > MAX_SYNC
+    {
+        let input = String::from_utf8(body.to_vec())
+            .map_err(|_| ApiError::bad_request("the request body is not UTF-8 JSON"))?;
+        let id = state.jobs.enqueue(JOB_KIND, input).await?;
         return Ok(Err(super::jobs::accepted(&id)));
     }
     let d = state
@@ -97,7 +112,7 @@ async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResul
         ));
     }
     check_finite("signal", &r.signal)?;
-    match run(&state, r.signal, r.method, r.params, true).await? {
+    match run(&state, r.signal, r.method, r.params, Some(&body)).await? {
         Ok(v) => Ok(ApiJson(v).into_response()),
         Err(accepted) => Ok(accepted),
     }
@@ -136,7 +151,7 @@ async fn post_measurement_decomposition(
     params.nv = Some(surf.nv);
     let key = format!("{surface}/{id}");
     // Always answered directly, so the result can be stored as the current decomposition.
-    match run(&state, m.deviations, r.method, params, false).await? {
+    match run(&state, m.deviations, r.method, params, None).await? {
         Ok(v) => {
             state.store.put_doc(&machine, DOC_KIND, &key, &v).await?;
             Ok(ApiJson(v).into_response())

@@ -3,23 +3,26 @@
 //! core's ([`gap::GapRequest`], [`gap::diagnose_motion_request`]); this file loads what is
 //! stored (machine, surface, measurement) and chooses between answering and a job.
 
+use std::sync::Arc;
+
 use axum::Router;
-use axum::extract::State;
+use axum::extract::{Request, State};
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
-use serde::Deserialize;
+use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::AppState;
 use super::contour::reader_options;
 use super::error::{ApiError, ApiResult};
-use super::extract::ApiJson;
+use super::extract::{ApiJson, decode_json, is_json, read_body};
 use super::lookup::{require_machine, require_measurement, require_surface};
 use crate::api::id::{Id, PathIds};
 use crate::gap::{
     self, GapRequest, PartBlock, PartGrid, ProgramCommand, diagnose_motion_program,
     diagnose_motion_request, motion_inputs, part_answer,
 };
+use crate::jobs::{Progress, Runner};
 use crate::motion::{
     Machine, ServoAxes, check_period, interpolate, machine_for_simulation, parse_with, servo_axes,
     stored_definition,
@@ -45,11 +48,50 @@ struct PartValidationBody {
     approach: Option<Vec<[f64; 3]>>,
 }
 
+/// Kind of the stored motion-diagnosis job (input: the machine id and the request body).
+pub const JOB_KIND: &str = "gap-diagnosis";
+
+/// Input of a stored motion diagnosis: the machine and the request body as sent.
+#[derive(Debug, Serialize, Deserialize)]
+struct StoredGap {
+    machine: String,
+    body: String,
+}
+
+/// Runs a stored motion diagnosis on any instance: the machine's servo model is read when
+/// the job runs (as the door read it), the request is the body as sent.
+pub fn runner(state: AppState) -> Runner {
+    let handle = tokio::runtime::Handle::current();
+    let sentence = |e: ApiError| e.detail().to_string();
+    Arc::new(move |input: &str, p: &Progress| {
+        let job: StoredGap = serde_json::from_str(input)
+            .map_err(|e| format!("the stored job input is not a gap diagnosis: {e}"))?;
+        let req: GapRequest = serde_json::from_str(&job.body)
+            .map_err(|e| format!("the stored request is not a gap diagnosis: {e}"))?;
+        let machine = Id::parse("machine", &job.machine).map_err(sentence)?;
+        p.set(0.02);
+        let def = handle
+            .block_on(require_machine(&state, &machine))
+            .map_err(sentence)?;
+        let mdef = stored_definition(&machine, &def).map_err(|e| sentence(e.into()))?;
+        let m = servo_axes(&machine, &mdef).map_err(|e| sentence(e.into()))?;
+        p.set(0.05);
+        diagnose_motion_request(&m, &req).map_err(|e| sentence(e.into()))
+    })
+}
+
 async fn gap_diagnosis(
     State(state): State<AppState>,
     PathIds([machine]): PathIds<1>,
-    ApiJson(req): ApiJson<GapRequest>,
+    request: Request,
 ) -> ApiResult<Response> {
+    if !is_json(request.headers()) {
+        return Err(ApiError::unsupported_media_type(
+            "send the body with Content-Type: application/json",
+        ));
+    }
+    let body = read_body(request).await?;
+    let req: GapRequest = decode_json(&body)?;
     let def = require_machine(&state, &machine).await?;
     match req.domain.as_str() {
         "motion" => {
@@ -69,14 +111,13 @@ async fn gap_diagnosis(
             if n.max(nv) > MAX_SYNC_SAMPLES {
                 // validate now so bad input is a 4xx, not a failed job
                 motion_inputs(&m, &req)?;
-                let id = state
-                    .jobs
-                    .submit("gap-diagnosis", move |p| {
-                        p.set(0.05);
-                        diagnose_motion_request(&m, &req)
-                            .map_err(|e| ApiError::from(e).detail().to_string())
-                    })
-                    .await?;
+                let input = serde_json::to_string(&StoredGap {
+                    machine: machine.to_string(),
+                    body: String::from_utf8(body.to_vec())
+                        .map_err(|_| ApiError::bad_request("the request body is not UTF-8 JSON"))?,
+                })
+                .map_err(ApiError::internal)?;
+                let id = state.jobs.enqueue(JOB_KIND, input).await?;
                 return Ok(super::jobs::accepted(&id));
             }
             let answer = state

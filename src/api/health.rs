@@ -20,5 +20,7 @@ async fn healthz(State(state): State<AppState>) -> ApiResult<ApiJson<Value>> {
         tracing::error!("health check: database unreachable: {e:#}");
         ApiError::unavailable("the database does not answer", 5)
     })?;
-    Ok(ApiJson(json!({"status": "ok"})))
+    Ok(ApiJson(
+        json!({"status": "ok", "instance": state.store.instance()}),
+    ))
 }

@@ -15,7 +15,7 @@ use super::AppState;
 use super::error::{ApiError, ApiResult};
 use super::extract::ApiJson;
 use crate::api::id::PathIds;
-use crate::jobs::{Cancel, JobStatus};
+use crate::jobs::{Cancel, JobStatus, Runner};
 
 /// Routes of this resource.
 pub fn routes() -> Router<AppState> {
@@ -30,6 +30,25 @@ pub const LIST_DEFAULT: usize = 100;
 pub const LIST_MAX: usize = 1000;
 
 const STATES: [&str; 5] = ["queued", "running", "done", "failed", "cancelled"];
+
+/// The runner of every stored job kind, for [`crate::jobs::JobPool::serve`]: the kinds any
+/// instance on the database can run (the door of each route queues them with its input).
+pub fn runners(state: &AppState) -> HashMap<String, Runner> {
+    HashMap::from([
+        (
+            super::decomposition::JOB_KIND.to_string(),
+            super::decomposition::runner(),
+        ),
+        (
+            super::gap::JOB_KIND.to_string(),
+            super::gap::runner(state.clone()),
+        ),
+        (
+            super::step_error::TRAINING_JOB.to_string(),
+            super::step_error::training_runner(state.clone()),
+        ),
+    ])
+}
 
 /// `202 {"job": id}` with `Location: /v1/jobs/{id}` (CONTRACT v1.1).
 pub fn accepted(id: &str) -> Response {

@@ -21,6 +21,7 @@ pub mod machines;
 pub mod measurements;
 pub mod metrics;
 pub mod middleware;
+pub mod model_versions;
 pub mod step_error;
 pub mod surfaces;
 pub mod upload;

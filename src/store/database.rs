@@ -39,7 +39,7 @@ pub(crate) fn now_ms() -> i64 {
 }
 
 fn migrator(backend: Backend) -> Migrator {
-    let scripts: [(i64, &'static str, &'static str); 2] = match backend {
+    let scripts: [(i64, &'static str, &'static str); 3] = match backend {
         Backend::Sqlite => [
             (
                 1,
@@ -50,6 +50,11 @@ fn migrator(backend: Backend) -> Migrator {
                 2,
                 "job_times",
                 include_str!("../../migrations/sqlite/0002_job_times.sql"),
+            ),
+            (
+                3,
+                "scale_out",
+                include_str!("../../migrations/sqlite/0003_scale_out.sql"),
             ),
         ],
         Backend::Postgres => [
@@ -62,6 +67,11 @@ fn migrator(backend: Backend) -> Migrator {
                 2,
                 "job_times",
                 include_str!("../../migrations/postgres/0002_job_times.sql"),
+            ),
+            (
+                3,
+                "scale_out",
+                include_str!("../../migrations/postgres/0003_scale_out.sql"),
             ),
         ],
     };
@@ -85,8 +95,9 @@ impl Store {
     /// Opens (creating if needed) the data dir and the database, and applies migrations.
     ///
     /// `database_url`: `None` = SQLite file `truecut.db` in `data_dir`; `sqlite://...` or
-    /// `postgres://...` otherwise. The data dir also holds `models/` and `instance-id`
-    /// (which identifies this instance's jobs across restarts).
+    /// `postgres://...` otherwise. The data dir also holds `models/` (model files on SQLite).
+    /// Each opened store is one instance with a fresh id ([`Store::instance`]): the owner
+    /// of the jobs it runs, kept alive in the `instances` table by [`Store::heartbeat`].
     pub async fn open(data_dir: &Path, database_url: Option<&str>) -> Result<Store> {
         std::fs::create_dir_all(data_dir)
             .with_context(|| format!("cannot create data dir {}", data_dir.display()))?;
@@ -135,8 +146,13 @@ impl Store {
             .run(&db)
             .await
             .context("database migration failed")?;
-        let instance = instance_id(data_dir)?;
-        let models = ModelStore::new(data_dir.join("models"), db.clone());
+        let instance = uuid::Uuid::now_v7().to_string();
+        let models = ModelStore::new(
+            data_dir.join("models"),
+            db.clone(),
+            backend,
+            instance.clone(),
+        );
         let swept = models.sweep_temp_files()?;
         if swept > 0 {
             tracing::warn!(
@@ -173,9 +189,17 @@ impl Store {
         &self.data_dir
     }
 
-    /// This instance's id (persisted in the data dir; owner of its jobs).
+    /// This instance's id: fresh for every opened store (one per process), the owner of the
+    /// jobs it runs. (Earlier builds kept one id per data dir in `<data-dir>/instance-id`;
+    /// that file is no longer read.)
     pub fn instance(&self) -> &str {
         &self.instance
+    }
+
+    /// SQL for "now" in Unix ms on the database's clock: leases are judged by one clock
+    /// whatever the hosts' clocks say.
+    pub(crate) fn now_sql(&self) -> &'static str {
+        now_sql(self.backend)
     }
 
     /// Checks that the database answers (for readiness).
@@ -187,6 +211,14 @@ impl Store {
     /// Closes the pool (waits for connections to be returned).
     pub async fn close(&self) {
         self.db.close().await;
+    }
+}
+
+/// See [`Store::now_sql`].
+pub(crate) fn now_sql(backend: Backend) -> &'static str {
+    match backend {
+        Backend::Sqlite => "CAST(ROUND((julianday('now') - 2440587.5) * 86400000.0) AS INTEGER)",
+        Backend::Postgres => "CAST(EXTRACT(EPOCH FROM clock_timestamp()) * 1000 AS BIGINT)",
     }
 }
 
@@ -202,20 +234,6 @@ fn redact(url: &str) -> String {
         }
         _ => url.to_string(),
     }
-}
-
-/// Reads `<data_dir>/instance-id`, creating it with a fresh UUID the first time.
-fn instance_id(data_dir: &Path) -> Result<String> {
-    let path = data_dir.join("instance-id");
-    if let Ok(text) = std::fs::read_to_string(&path) {
-        let id = text.trim();
-        if !id.is_empty() {
-            return Ok(id.to_string());
-        }
-    }
-    let id = uuid::Uuid::now_v7().to_string();
-    std::fs::write(&path, &id).with_context(|| format!("cannot write {}", path.display()))?;
-    Ok(id)
 }
 
 #[cfg(test)]

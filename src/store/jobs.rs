@@ -7,6 +7,13 @@
 //! model); it is entered with a conditional update ([`Store::claim_job_commit`]) that races
 //! atomically with [`Store::cancel_job`], so a cancelled job never stores anything and a job
 //! that stored its model is not reported cancelled. Clients see `storing` as `running`.
+//!
+//! Ownership: a job with stored `input` is queued unowned (`owner = ''`) and taken by
+//! whichever instance claims it first ([`Store::claim_job`]: `FOR UPDATE SKIP LOCKED` on
+//! PostgreSQL, a conditional update on SQLite, so one claim wins); an in-process job (no
+//! input) belongs to its submitter from the start. Every later write by the worker (progress,
+//! commit gate, outcome) is conditional on `owner` still being this instance, so a worker
+//! whose job was taken away (its instance was judged gone) can no longer store anything.
 
 use anyhow::{Context, Result};
 use serde::Serialize;
@@ -38,6 +45,22 @@ pub struct JobRecord {
     pub started_at_ms: Option<i64>,
     /// When it ended (done, failed or cancelled), Unix ms.
     pub finished_at_ms: Option<i64>,
+    /// The instance running it or that ran it last (empty while queued unclaimed).
+    pub owner: String,
+    /// How many times an instance claimed it (more than 1: re-queued after its instance
+    /// stopped).
+    pub attempts: i64,
+}
+
+/// A job taken from the queue by [`Store::claim_job`].
+#[derive(Clone, Debug)]
+pub struct ClaimedJob {
+    /// Job id.
+    pub id: String,
+    /// Its kind (names the runner).
+    pub kind: String,
+    /// Its stored input (JSON text).
+    pub input: String,
 }
 
 /// What [`Store::cancel_job`] found.
@@ -54,8 +77,8 @@ pub enum CancelOutcome {
 /// The job states that count as unfinished (a worker may still be on them).
 const UNFINISHED: &str = "('queued', 'running', 'storing')";
 
-const COLUMNS: &str =
-    "id, kind, state, progress, result, error, created_at, updated_at, started_at, finished_at";
+const COLUMNS: &str = "id, kind, state, progress, result, error, created_at, updated_at, \
+                       started_at, finished_at, owner, attempts";
 
 fn record(row: &AnyRow) -> Result<JobRecord> {
     let result: Option<String> = row.try_get(4)?;
@@ -73,22 +96,27 @@ fn record(row: &AnyRow) -> Result<JobRecord> {
         updated_at_ms: row.try_get(7)?,
         started_at_ms: row.try_get(8)?,
         finished_at_ms: row.try_get(9)?,
+        owner: row.try_get(10)?,
+        attempts: row.try_get(11)?,
     })
 }
 
 impl Store {
-    /// Records a new queued job owned by this instance.
-    pub async fn insert_job(&self, id: &str, kind: &str) -> Result<()> {
+    /// Records a new queued job: with `input` (JSON text) any instance may claim it
+    /// ([`Store::claim_job`]); without, it is this instance's in-process job.
+    pub async fn insert_job(&self, id: &str, kind: &str, input: Option<&str>) -> Result<()> {
         let now = now_ms();
+        let owner = if input.is_some() { "" } else { self.instance() };
         sqlx::query(
-            "INSERT INTO jobs (id, kind, state, progress, owner, created_at, updated_at) \
-             VALUES ($1, $2, 'queued', 0.0, $3, $4, $5)",
+            "INSERT INTO jobs (id, kind, state, progress, owner, created_at, updated_at, input) \
+             VALUES ($1, $2, 'queued', 0.0, $3, $4, $5, $6)",
         )
         .bind(id.to_string())
         .bind(kind.to_string())
-        .bind(self.instance().to_string())
+        .bind(owner.to_string())
         .bind(now)
         .bind(now)
+        .bind(input.map(str::to_string))
         .execute(&self.db)
         .await
         .context("cannot record the job")?;
@@ -100,12 +128,13 @@ impl Store {
     pub async fn start_job(&self, id: &str) -> Result<bool> {
         let now = now_ms();
         let n = sqlx::query(
-            "UPDATE jobs SET state = 'running', started_at = $1, updated_at = $2 \
-             WHERE id = $3 AND state = 'queued'",
+            "UPDATE jobs SET state = 'running', started_at = $1, updated_at = $2, \
+             attempts = attempts + 1 WHERE id = $3 AND state = 'queued' AND owner = $4",
         )
         .bind(now)
         .bind(now)
         .bind(id.to_string())
+        .bind(self.instance().to_string())
         .execute(&self.db)
         .await
         .context("cannot mark the job running")?
@@ -113,14 +142,89 @@ impl Store {
         Ok(n == 1)
     }
 
-    /// Moves a running job to `storing` just before it writes what it made. False when the
-    /// job was cancelled (or is not running): the caller must then store nothing.
+    /// Takes the oldest queued job with stored input whose kind is in `kinds`, marking it
+    /// running on this instance; `None` when there is none. On PostgreSQL the row is chosen
+    /// with `FOR UPDATE SKIP LOCKED`, so instances claiming at once take different jobs; on
+    /// SQLite writes are serialised and the update is conditional on the job still being
+    /// queued. Either way a job is claimed by one instance at a time.
+    pub async fn claim_job(&self, kinds: &[String]) -> Result<Option<ClaimedJob>> {
+        if kinds.is_empty() {
+            return Ok(None);
+        }
+        let marks: Vec<String> = (0..kinds.len()).map(|i| format!("${}", i + 4)).collect();
+        let lock = match self.backend() {
+            super::Backend::Postgres => " FOR UPDATE SKIP LOCKED",
+            super::Backend::Sqlite => "",
+        };
+        let sql = format!(
+            "UPDATE jobs SET state = 'running', owner = $1, started_at = $2, updated_at = $3, \
+             attempts = attempts + 1 \
+             WHERE state = 'queued' AND id = (SELECT id FROM jobs WHERE state = 'queued' \
+             AND input IS NOT NULL AND kind IN ({}) ORDER BY created_at, id LIMIT 1{lock}) \
+             RETURNING id, kind, input",
+            marks.join(", ")
+        );
+        let now = now_ms();
+        let mut q = sqlx::query(AssertSqlSafe(sql))
+            .bind(self.instance().to_string())
+            .bind(now)
+            .bind(now);
+        for k in kinds {
+            q = q.bind(k.clone());
+        }
+        let row = q
+            .fetch_optional(&self.db)
+            .await
+            .context("cannot claim a job")?;
+        row.map(|r| -> Result<ClaimedJob> {
+            Ok(ClaimedJob {
+                id: r.try_get(0)?,
+                kind: r.try_get(1)?,
+                input: r.try_get(2)?,
+            })
+        })
+        .transpose()
+    }
+
+    /// Queued jobs with stored input (waiting for any instance's worker).
+    pub async fn count_queued_jobs(&self) -> Result<u64> {
+        let n: i64 = sqlx::query_scalar(
+            "SELECT COUNT(*) FROM jobs WHERE state = 'queued' AND input IS NOT NULL",
+        )
+        .fetch_one(&self.db)
+        .await?;
+        Ok(u64::try_from(n).unwrap_or(0))
+    }
+
+    /// Stores a running job's progress, so every instance can answer it. False when the job
+    /// is no longer running on this instance (cancelled, or taken over after this instance
+    /// was judged gone): its worker should stop.
+    pub async fn report_job_progress(&self, id: &str, progress: f64) -> Result<bool> {
+        let n = sqlx::query(
+            "UPDATE jobs SET progress = $1, updated_at = $2 \
+             WHERE id = $3 AND owner = $4 AND state IN ('running', 'storing')",
+        )
+        .bind(progress)
+        .bind(now_ms())
+        .bind(id.to_string())
+        .bind(self.instance().to_string())
+        .execute(&self.db)
+        .await?
+        .rows_affected();
+        Ok(n == 1)
+    }
+
+    /// Moves a running job of this instance to `storing` just before it writes what it
+    /// made. False when the job was cancelled (or is not running here): the caller must then
+    /// store nothing.
     pub async fn claim_job_commit(&self, id: &str) -> Result<bool> {
         let n = sqlx::query(
-            "UPDATE jobs SET state = 'storing', updated_at = $1 WHERE id = $2 AND state = 'running'",
+            "UPDATE jobs SET state = 'storing', updated_at = $1 \
+             WHERE id = $2 AND state = 'running' AND owner = $3",
         )
         .bind(now_ms())
         .bind(id.to_string())
+        .bind(self.instance().to_string())
         .execute(&self.db)
         .await
         .context("cannot update the job")?
@@ -128,8 +232,9 @@ impl Store {
         Ok(n == 1)
     }
 
-    /// Ends an unfinished job as `done` (with its result) or `failed` (with its error). A job
-    /// that was cancelled meanwhile keeps its `cancelled` state (returns false).
+    /// Ends an unfinished job of this instance as `done` (with its result) or `failed` (with
+    /// its error). A job that was cancelled (or taken over) meanwhile keeps its state
+    /// (returns false).
     pub async fn finish_job(
         &self,
         id: &str,
@@ -141,7 +246,7 @@ impl Store {
         let now = now_ms();
         let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = $1, progress = $2, result = $3, error = $4, updated_at = $5, \
-             finished_at = $6 WHERE id = $7 AND state IN {UNFINISHED}"
+             finished_at = $6 WHERE id = $7 AND owner = $8 AND state IN {UNFINISHED}"
         )))
         .bind(state.to_string())
         .bind(progress)
@@ -150,6 +255,7 @@ impl Store {
         .bind(now)
         .bind(now)
         .bind(id.to_string())
+        .bind(self.instance().to_string())
         .execute(&self.db)
         .await
         .context("cannot update the job")?
@@ -244,23 +350,5 @@ impl Store {
         }
         let rows = q.fetch_all(&self.db).await?;
         rows.iter().map(record).collect()
-    }
-
-    /// Marks every unfinished job of this instance as failed with `reason`
-    /// (at start-up: they were interrupted by a shutdown or crash). Returns how many.
-    pub async fn fail_unfinished_jobs(&self, reason: &str) -> Result<u64> {
-        let now = now_ms();
-        let n = sqlx::query(AssertSqlSafe(format!(
-            "UPDATE jobs SET state = 'failed', error = $1, updated_at = $2, finished_at = $3 \
-             WHERE owner = $4 AND state IN {UNFINISHED}"
-        )))
-        .bind(reason.to_string())
-        .bind(now)
-        .bind(now)
-        .bind(self.instance().to_string())
-        .execute(&self.db)
-        .await?
-        .rows_affected();
-        Ok(n)
     }
 }

@@ -90,6 +90,7 @@ impl Store {
             "DELETE FROM measurements WHERE machine = $1",
             "DELETE FROM surfaces WHERE machine = $1",
             "DELETE FROM docs WHERE machine = $1",
+            "DELETE FROM model_versions WHERE machine = $1",
             "DELETE FROM models WHERE machine = $1",
         ] {
             sqlx::query(sql)

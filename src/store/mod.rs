@@ -4,21 +4,27 @@
 //! URL), through one `sqlx::AnyPool` with runtime queries that run on both. Arrays of
 //! numbers (surface grids, deviations) are stored as little-endian `f64` BLOBs: measured
 //! about 10x faster than a row per point for 250,000-point uploads (BENCHMARKS.md).
-//! Trained models are files under `<data-dir>/models`, see [`ModelStore`].
+//! Trained models are versioned: in the database on PostgreSQL (every instance serves
+//! them), files under `<data-dir>/models` on SQLite; see [`ModelStore`]. Instances sharing
+//! the database keep leases in `instances` (`instances.rs`).
 
 mod codec;
 mod database;
 mod docs;
+mod instances;
 mod jobs;
 mod machines;
 mod measurements;
+mod model_versions;
 mod models;
 mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
 pub use database::{Backend, Store};
-pub use jobs::{CancelOutcome, JobRecord};
+pub use instances::Reaped;
+pub use jobs::{CancelOutcome, ClaimedJob, JobRecord};
 pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};
-pub use models::{MODEL_FORMAT_VERSION, ModelStore, is_valid_id};
+pub use model_versions::{ModelVersion, ModelVersions, Rollback};
+pub use models::{JobDone, MODEL_FORMAT_VERSION, ModelStore, VERSIONS_KEPT, is_valid_id};
 pub use surfaces::{Surface, SurfaceSummary};

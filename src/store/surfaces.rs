@@ -181,6 +181,7 @@ impl Store {
         let mut tx = self.db.begin().await?;
         for sql in [
             "DELETE FROM measurements WHERE machine = $1 AND surface = $2",
+            "DELETE FROM model_versions WHERE machine = $1 AND surface = $2",
             "DELETE FROM models WHERE machine = $1 AND surface = $2",
         ] {
             sqlx::query(sql)

@@ -158,37 +158,66 @@ async fn jobs_interrupted_by_shutdown_show_failed(app: TestApp) {
 }
 on_both_backends!(jobs_interrupted_by_shutdown_show_failed);
 
+/// A second instance on the same data dir and database leaves a live instance's jobs alone;
+/// once the first stops renewing its lease (a crash: no shutdown, no heartbeat), the live
+/// one fails its in-process jobs and re-queues its stored ones, and the gone instance's
+/// worker can no longer store anything.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
-async fn jobs_in_flight_at_a_crash_show_failed_after_restart() {
+async fn only_the_jobs_of_gone_instances_are_taken_back() {
     let dir = tempfile::tempdir().unwrap();
+    // The first instance: registered with a 2 s lease, never renewed (it will "crash").
     let store = Store::open(dir.path(), None).await.unwrap();
-    let pool = JobPool::start(store.clone(), 1, 4).await.unwrap();
-    let (go_tx, go_rx) = mpsc::channel::<()>();
-    let (started_tx, started_rx) = mpsc::channel::<()>();
-    let running = pool
-        .submit("long", move |_| {
-            started_tx.send(()).unwrap();
-            let _ = go_rx.recv();
-            Ok(json!(null))
-        })
+    store.register_instance(2000).await.unwrap();
+    store.insert_job("running-1", "x", None).await.unwrap();
+    assert!(store.start_job("running-1").await.unwrap());
+    store.insert_job("queued-1", "x", None).await.unwrap();
+    store
+        .insert_job("stored-1", "stored", Some("{}"))
         .await
         .unwrap();
-    started_rx.recv_timeout(Duration::from_secs(5)).unwrap();
-    let queued = pool.submit("queued", |_| Ok(json!(null))).await.unwrap();
-    assert_eq!(pool.status(&queued).await.unwrap().unwrap().state, "queued");
-    // "Crash": no shutdown; a new process opens the same data dir.
+    let claimed = store.claim_job(&["stored".into()]).await.unwrap().unwrap();
+    assert_eq!(claimed.id, "stored-1");
+    assert!(store.claim_job(&["stored".into()]).await.unwrap().is_none());
+
+    // A second instance on the same data dir: the first is alive, nothing moves.
     let store2 = Store::open(dir.path(), None).await.unwrap();
-    let pool2 = JobPool::start(store2, 1, 4).await.unwrap();
-    for id in [&running, &queued] {
-        let st = pool2.status(id).await.unwrap().unwrap();
+    assert_ne!(store.instance(), store2.instance());
+    let pool2 = JobPool::start_with_lease(store2.clone(), 1, 4, Duration::from_millis(600))
+        .await
+        .unwrap();
+    let state = |id: &'static str| {
+        let p = pool2.clone();
+        async move { p.status(id).await.unwrap().unwrap() }
+    };
+    assert_eq!(state("running-1").await.state, "running");
+    assert_eq!(state("queued-1").await.state, "queued");
+    assert_eq!(state("stored-1").await.state, "running");
+
+    // The first's lease expires; the second's heartbeat (every 0.2 s) takes its jobs back.
+    let t0 = std::time::Instant::now();
+    while state("stored-1").await.state == "running" && t0.elapsed() < Duration::from_secs(10) {
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    }
+    println!(
+        "lease 2 s: the gone instance's jobs were taken back {:?} after the test started waiting",
+        t0.elapsed()
+    );
+    for id in ["running-1", "queued-1"] {
+        let st = state(id).await;
         assert_eq!(st.state, "failed", "{st:?}");
         assert!(st.error.unwrap().contains("interrupted"));
     }
-    // Another instance (other data dir) does not touch this instance's jobs.
-    let other = tempfile::tempdir().unwrap();
-    let s3 = Store::open(other.path(), None).await.unwrap();
-    assert_eq!(s3.fail_unfinished_jobs("x").await.unwrap(), 0);
-    go_tx.send(()).unwrap();
+    let st = state("stored-1").await;
+    assert_eq!((st.state.as_str(), st.attempts), ("queued", 1), "{st:?}");
+    assert!(store2.live_instances().await.unwrap() == vec![store2.instance().to_string()]);
+    // The gone instance's worker can no longer store anything for its jobs.
+    assert!(!store.claim_job_commit("stored-1").await.unwrap());
+    assert!(!store.report_job_progress("stored-1", 0.5).await.unwrap());
+    let again = store2.claim_job(&["stored".into()]).await.unwrap().unwrap();
+    assert_eq!(again.id, "stored-1");
+    let st = state("stored-1").await;
+    assert_eq!(st.instance.as_deref(), Some(store2.instance()));
+    assert_eq!(st.attempts, 2);
 }
 
 async fn model_store(app: TestApp) {
@@ -212,55 +241,137 @@ async fn model_store(app: TestApp) {
         models.load("m", None, "map").await.unwrap().unwrap(),
         b"machine-level"
     );
-    // Replacing keeps exactly one file and no temp files.
-    models.save("m", Some("s"), "net", b"v2").await.unwrap();
-    let (dir, file) = models.path_of("m", Some("s"), "net").unwrap();
-    let names: Vec<String> = std::fs::read_dir(&dir)
+    // Replacing makes version 2 and keeps version 1; no temp files remain.
+    assert_eq!(models.save("m", Some("s"), "net", b"v2").await.unwrap(), 2);
+    let versions = models
+        .versions("m", Some("s"), "net")
+        .await
         .unwrap()
-        .map(|e| e.unwrap().file_name().to_string_lossy().into())
-        .collect();
-    assert_eq!(names, vec!["net.tcm".to_string()]);
-    // A crash mid-write leaves a partial temp file: the previous model still loads,
-    // and the next start sweeps the temp file.
-    let tmp = dir.join(".net.tcm.tmp-0123456789");
+        .unwrap();
+    assert_eq!(versions.current, 2);
+    let numbers = |v: &truecut::store::ModelVersions| -> Vec<i64> {
+        v.versions.iter().map(|x| x.version).collect()
+    };
+    assert_eq!(numbers(&versions), vec![2, 1]);
+    let dir = models.dir_of("m", Some("s"), "net").unwrap();
+    let listing = |dir: &std::path::Path| -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(dir)
+            .map(|d| {
+                d.map(|e| e.unwrap().file_name().to_string_lossy().into())
+                    .collect()
+            })
+            .unwrap_or_default();
+        names.sort();
+        names
+    };
+    if models.in_database() {
+        assert!(
+            listing(&dir).is_empty(),
+            "PostgreSQL keeps models in the database"
+        );
+    } else {
+        assert_eq!(listing(&dir), vec!["net.v1.tcm", "net.v2.tcm"]);
+    }
+    // Rollback serves version 1 again; the next save is version 3.
+    assert_eq!(
+        models.rollback("m", Some("s"), "net", 1).await.unwrap(),
+        truecut::store::Rollback::Done
+    );
+    assert_eq!(
+        models.load("m", Some("s"), "net").await.unwrap().unwrap(),
+        payload
+    );
+    assert_eq!(
+        models.rollback("m", Some("s"), "net", 9).await.unwrap(),
+        truecut::store::Rollback::NoVersion(vec![2, 1])
+    );
+    assert_eq!(models.save("m", Some("s"), "net", b"v3").await.unwrap(), 3);
+    // Only the last VERSIONS_KEPT versions are kept (files too).
+    let kept = truecut::store::VERSIONS_KEPT;
+    for _ in 0..kept {
+        models.save("m", Some("s"), "net", b"again").await.unwrap();
+    }
+    let versions = models
+        .versions("m", Some("s"), "net")
+        .await
+        .unwrap()
+        .unwrap();
+    assert_eq!(versions.versions.len() as i64, kept);
+    assert_eq!(versions.current, 3 + kept);
+    if !models.in_database() {
+        assert_eq!(listing(&dir).len() as i64, kept);
+    }
+    models.save("m", Some("s"), "net", b"v2").await.unwrap();
+    // A crash mid-write leaves a partial temp file: the model still loads, and the next
+    // start sweeps the temp file.
+    std::fs::create_dir_all(&dir).unwrap();
+    let tmp = dir.join(".net.v99.tcm.tmp-0123456789");
     std::fs::write(&tmp, b"TRUECUTM partial").unwrap();
     assert_eq!(
         models.load("m", Some("s"), "net").await.unwrap().unwrap(),
         b"v2"
     );
-    // Corruption: a flipped payload byte, a truncated file, a foreign file.
-    let good = std::fs::read(&file).unwrap();
+    // Corruption: a flipped payload byte, a truncated container, a foreign blob; then the
+    // bytes vanish. On SQLite in the file, on PostgreSQL in the row.
+    let current = models
+        .versions("m", Some("s"), "net")
+        .await
+        .unwrap()
+        .unwrap()
+        .current;
+    let file = models.file_of("m", Some("s"), "net", current).unwrap();
+    let in_db = models.in_database();
+    let good: Vec<u8> = if in_db {
+        sqlx::query_scalar("SELECT data FROM model_versions WHERE kind = 'net' AND version = $1")
+            .bind(current)
+            .fetch_one(store.pool())
+            .await
+            .unwrap()
+    } else {
+        std::fs::read(&file).unwrap()
+    };
     let mut bad = good.clone();
     *bad.last_mut().unwrap() ^= 1;
-    std::fs::write(&file, &bad).unwrap();
-    let err = models
-        .load("m", Some("s"), "net")
-        .await
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("checksum"), "{err}");
-    std::fs::write(&file, &good[..good.len() - 1]).unwrap();
-    let err = models
-        .load("m", Some("s"), "net")
-        .await
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("corrupt"), "{err}");
-    std::fs::write(&file, b"{\"weights\": []}").unwrap();
-    let err = models
-        .load("m", Some("s"), "net")
-        .await
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("corrupt"), "{err}");
-    // Recorded in the database but the file vanished: an error, not "no model".
-    std::fs::remove_file(&file).unwrap();
-    let err = models
-        .load("m", Some("s"), "net")
-        .await
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("missing"), "{err}");
+    for (bytes, needle) in [
+        (Some(bad), "checksum"),
+        (Some(good[..good.len() - 1].to_vec()), "corrupt"),
+        (Some(b"{\"weights\": []}".to_vec()), "corrupt"),
+        (None, "missing"),
+        (Some(good.clone()), ""),
+    ] {
+        if in_db {
+            sqlx::query("UPDATE model_versions SET data = $1 WHERE kind = 'net' AND version = $2")
+                .bind(bytes)
+                .bind(current)
+                .execute(store.pool())
+                .await
+                .unwrap();
+        } else {
+            match bytes {
+                Some(b) => std::fs::write(&file, b).unwrap(),
+                None => std::fs::remove_file(&file).unwrap(),
+            }
+        }
+        let loaded = models.load("m", Some("s"), "net").await;
+        if needle.is_empty() {
+            assert_eq!(loaded.unwrap().unwrap(), b"v2");
+        } else {
+            let err = loaded.unwrap_err().to_string();
+            assert!(err.contains(needle), "{err}");
+        }
+    }
+    // Deleting removes every version.
+    assert!(models.delete("m", Some("s"), "net").await.unwrap());
+    assert_eq!(models.load("m", Some("s"), "net").await.unwrap(), None);
+    assert!(
+        models
+            .versions("m", Some("s"), "net")
+            .await
+            .unwrap()
+            .is_none()
+    );
+    assert!(!models.delete("m", Some("s"), "net").await.unwrap());
+    assert!(listing(&dir).iter().all(|n| n.contains(".tmp-")));
     // Bad components and unknown machines are refused.
     assert!(models.save("m", Some("../x"), "net", b"1").await.is_err());
     assert!(models.save("nope", None, "net", b"1").await.is_err());

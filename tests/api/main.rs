@@ -10,11 +10,14 @@ mod helpers;
 
 mod compensated;
 mod contour;
+mod crash;
 mod decomposition;
 mod gap;
+mod instances;
 mod jobs_cancel;
 mod jobs_models;
 mod resources;
+mod scale_out;
 mod service;
 mod stalled;
 mod step_error;

@@ -150,7 +150,13 @@ async fn health_metrics_request_id(app: TestApp) {
         r.headers().contains_key("x-request-id"),
         "request id is echoed"
     );
-    assert_eq!(r.json::<Value>().await.unwrap(), json!({"status": "ok"}));
+    let health: Value = r.json().await.unwrap();
+    assert_eq!(health["status"], "ok", "{health}");
+    assert_eq!(
+        health["instance"],
+        app.server().state().store.instance(),
+        "the instance id names this process (the `instance` of its jobs)"
+    );
     // A caller's request id is kept.
     let r = app
         .client

@@ -316,3 +316,74 @@ async fn fitting_needs_admin(mut app: TestApp) {
 }
 on_both_backends!(fitting_needs_admin, |c| c.tokens =
     Some("admin-token admin\nwriter-token write\nreader-token read\n".into()));
+
+/// Every PUT keeps the previous maps: list them, roll back (the predictions follow), refuse
+/// unknown versions; a delete removes them all.
+async fn versions_and_rollback(app: TestApp) {
+    put_machine(&app).await;
+    let m = machine();
+    let at = json!({"points": [[10.0, 20.0, 30.0]]});
+    assert_eq!(
+        app.put_json(MAP, &grid_body(&m, "trilinear"))
+            .await
+            .status(),
+        201
+    );
+    let first: Value = app
+        .post_json(&format!("{MAP}/predict"), &at)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(
+        app.put_json(MAP, &grid_body(&m, "kinematic"))
+            .await
+            .status(),
+        200
+    );
+    let second: Value = app
+        .post_json(&format!("{MAP}/predict"), &at)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_ne!(first["model"], second["model"]);
+    let v: Value = app
+        .get(&format!("{MAP}/versions"))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(v["current"], 2, "{v}");
+    assert_eq!(v["versions"].as_array().unwrap().len(), 2, "{v}");
+    assert_eq!(v["versions"][0]["version"], 2);
+    assert_eq!(v["versions"][0]["sha256"].as_str().unwrap().len(), 64);
+    let r = app
+        .post_json(&format!("{MAP}/rollback"), &json!({"version": 1}))
+        .await;
+    assert_eq!(r.status(), 200);
+    let back: Value = app
+        .post_json(&format!("{MAP}/predict"), &at)
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(back, first, "version 1 is served again");
+    assert_problem(
+        app.post_json(&format!("{MAP}/rollback"), &json!({"version": 7}))
+            .await,
+        404,
+        &["version 7", "2, 1"],
+    )
+    .await;
+    assert_problem(
+        app.post_json(&format!("{MAP}/rollback"), &json!({"version": 0}))
+            .await,
+        400,
+        &["version"],
+    )
+    .await;
+    assert_eq!(app.delete(MAP).await.status(), 204);
+    assert_problem(app.get(&format!("{MAP}/versions")).await, 404, &["PUT"]).await;
+}
+on_both_backends!(versions_and_rollback);

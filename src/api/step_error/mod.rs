@@ -1,7 +1,7 @@
 //! Step error of ball-end finishing over HTTP (openapi.yaml `POST /v1/step-error` and the
 //! `step-error-*` routes; Zhang et al. 2023): the exact
 //! geometric route (`exact.rs`), sample generation (`samples.rs`), training / fine-tuning the
-//! network as a job and prediction from it (`model.rs`). The work is the `step_error` core's
+//! network as a job, prediction from it, its versions and rollback (`model.rs`). The work is the `step_error` core's
 //! and the body decoding the `codec`'s; statuses are decided in `api/error.rs`.
 
 mod exact;
@@ -9,11 +9,13 @@ mod model;
 mod samples;
 
 use axum::Router;
-use axum::routing::post;
+use axum::routing::{get, post};
 
 use super::AppState;
 use exact::exact;
-use model::{model_info, predict, train};
+use model::{delete_model, model_info, model_rollback, model_versions, predict, train};
+
+pub use model::{TRAINING_JOB, training_runner};
 use samples::{samples, surface_samples};
 
 /// Segments answered synchronously by the sample routes (the exact route takes any count the
@@ -31,7 +33,15 @@ pub fn routes() -> Router<AppState> {
         )
         .route(
             "/v1/machines/{machine}/surfaces/{surface}/step-error-model",
-            post(train).get(model_info),
+            post(train).get(model_info).delete(delete_model),
+        )
+        .route(
+            "/v1/machines/{machine}/surfaces/{surface}/step-error-model/versions",
+            get(model_versions),
+        )
+        .route(
+            "/v1/machines/{machine}/surfaces/{surface}/step-error-model/rollback",
+            post(model_rollback),
         )
         .route(
             "/v1/machines/{machine}/surfaces/{surface}/step-error-model/predict",

@@ -3,8 +3,10 @@
 //! The recipe is the `step_error` core's ([`TrainJob`]); this file parses the request, loads
 //! and saves the model files through `store`.
 
+use std::sync::Arc;
+
 use axum::body::Bytes;
-use axum::extract::State;
+use axum::extract::{Request, State};
 use axum::http::{HeaderMap, StatusCode};
 use axum::response::{IntoResponse, Response};
 use serde::{Deserialize, Serialize};
@@ -15,12 +17,15 @@ use super::samples::PlanWithOptionalRadius;
 use crate::api::AppState;
 use crate::api::auth::RequireAdmin;
 use crate::api::error::{ApiError, ApiResult};
-use crate::api::extract::ApiJson;
+use crate::api::extract::{ApiJson, decode_json, is_json, read_body};
 use crate::api::id::{Id, PathIds};
 use crate::api::lookup::{require_machine, require_surface};
+use crate::api::model_versions::{self as versions, ModelRef, RollbackRequest};
 use crate::geometry::{StepErrorSegment, StepFeatures, grid_segments};
+use crate::jobs::{Progress, Runner};
 use crate::nn::{self, Init, Regressor, TrainConfig};
 use crate::step_error::{MODEL_KIND, ModelMeta, SegmentBatch, TrainJob};
+use crate::store::JobDone;
 
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -96,18 +101,39 @@ async fn load_model(
     Ok((reg, meta))
 }
 
-pub(super) async fn train(
-    State(state): State<AppState>,
-    _admin: RequireAdmin,
-    PathIds([machine, surface]): PathIds<2>,
-    ApiJson(req): ApiJson<TrainRequest>,
-) -> ApiResult<impl IntoResponse> {
-    let stored = require_surface(&state, &machine, &surface).await?;
+/// Kind of the stored training job (input: machine, surface and the request body).
+pub const TRAINING_JOB: &str = "step_error_training";
+
+/// Input of a stored training job: where the model goes and the request body as sent.
+#[derive(Debug, Serialize, Deserialize)]
+struct StoredTraining {
+    machine: String,
+    surface: String,
+    body: String,
+}
+
+/// A training request checked and resolved against what is stored: the samples, the
+/// network's shape and the recipe.
+struct Prepared {
+    job: TrainJob,
+    segments: Vec<StepErrorSegment>,
+}
+
+/// Checks a training request and resolves it against the stored surface (and base model):
+/// the door runs it for the 4xx answers, the job runs it again on whichever instance
+/// claims it.
+async fn prepare(
+    state: &AppState,
+    machine: &Id,
+    surface: &Id,
+    req: TrainRequest,
+) -> ApiResult<Prepared> {
+    let stored = require_surface(state, machine, surface).await?;
     let base = match &req.base {
         Some(b) => {
             Id::parse("base.machine", &b.machine)?;
             Id::parse("base.surface", &b.surface)?;
-            Some(load_model(&state, &b.machine, &b.surface).await.map_err(|e| {
+            Some(load_model(state, &b.machine, &b.surface).await.map_err(|e| {
                 if e.status() == StatusCode::NOT_FOUND {
                     ApiError::not_found(format!(
                         "base model of machine '{}' surface '{}' does not exist: train it first",
@@ -227,44 +253,91 @@ pub(super) async fn train(
     } else {
         Init::He
     };
-    let store = state.store.clone();
-    let handle = tokio::runtime::Handle::current();
     let base_name = req
         .base
         .map(|b| json!({"machine": b.machine, "surface": b.surface}));
-    let id = state
-        .jobs
-        .submit("step_error_training", move |progress| {
-            let job = TrainJob {
-                r,
-                features,
-                hidden,
-                init,
-                cfg,
-                test_fraction,
-                base: base.map(|b| b.0),
-                base_name,
-            };
-            let (reg, result) = job
-                .run(&segments, &|p| {
-                    progress.set(p);
-                    !progress.is_cancelled()
-                })
-                .map_err(|e| ApiError::from(e).detail().to_string())?;
-            // Nothing is stored once a client cancelled the job (DELETE /v1/jobs/{id}).
-            progress.commit().map_err(|e| e.to_string())?;
-            handle
-                .block_on(store.models().save(
-                    &machine,
-                    Some(&surface),
-                    MODEL_KIND,
-                    &reg.to_bytes(),
-                ))
-                .map_err(|e| format!("the model was trained but could not be saved: {e:#}"))?;
-            Ok(result)
-        })
-        .await?;
+    Ok(Prepared {
+        job: TrainJob {
+            r,
+            features,
+            hidden,
+            init,
+            cfg,
+            test_fraction,
+            base: base.map(|b| b.0),
+            base_name,
+        },
+        segments,
+    })
+}
+
+pub(super) async fn train(
+    State(state): State<AppState>,
+    _admin: RequireAdmin,
+    PathIds([machine, surface]): PathIds<2>,
+    request: Request,
+) -> ApiResult<impl IntoResponse> {
+    if !is_json(request.headers()) {
+        return Err(ApiError::unsupported_media_type(
+            "send the body with Content-Type: application/json",
+        ));
+    }
+    let body = read_body(request).await?;
+    let req: TrainRequest = decode_json(&body)?;
+    prepare(&state, &machine, &surface, req).await?;
+    let input = serde_json::to_string(&StoredTraining {
+        machine: machine.to_string(),
+        surface: surface.to_string(),
+        body: String::from_utf8(body.to_vec())
+            .map_err(|_| ApiError::bad_request("the request body is not UTF-8 JSON"))?,
+    })
+    .map_err(ApiError::internal)?;
+    let id = state.jobs.enqueue(TRAINING_JOB, input).await?;
     Ok(super::super::jobs::accepted(&id))
+}
+
+/// Runs a stored training job on any instance: prepares the request again, trains, and
+/// saves the model as a new version in the same transaction that marks the job done.
+pub fn training_runner(state: AppState) -> Runner {
+    let handle = tokio::runtime::Handle::current();
+    let sentence = |e: ApiError| e.detail().to_string();
+    Arc::new(move |input: &str, progress: &Progress| {
+        let stored: StoredTraining = serde_json::from_str(input)
+            .map_err(|e| format!("the stored job input is not a training request: {e}"))?;
+        let req: TrainRequest = serde_json::from_str(&stored.body)
+            .map_err(|e| format!("the stored request is not a training request: {e}"))?;
+        let machine = Id::parse("machine", &stored.machine).map_err(sentence)?;
+        let surface = Id::parse("surface", &stored.surface).map_err(sentence)?;
+        let prepared = handle
+            .block_on(prepare(&state, &machine, &surface, req))
+            .map_err(sentence)?;
+        let (reg, result) = prepared
+            .job
+            .run(&prepared.segments, &|p| {
+                progress.set(p);
+                !progress.is_cancelled()
+            })
+            .map_err(|e| ApiError::from(e).detail().to_string())?;
+        // Nothing is stored once a client cancelled the job (DELETE /v1/jobs/{id}).
+        progress.commit().map_err(|e| e.to_string())?;
+        let id = progress
+            .job_id()
+            .ok_or("a stored job runs with its id")?
+            .to_string();
+        handle
+            .block_on(state.store.models().save_for_job(
+                &machine,
+                Some(&surface),
+                MODEL_KIND,
+                &reg.to_bytes(),
+                JobDone {
+                    id: &id,
+                    result: &result,
+                },
+            ))
+            .map_err(|e| format!("the model was trained but could not be saved: {e:#}"))?;
+        Ok(result)
+    })
 }
 
 pub(super) async fn model_info(
@@ -283,6 +356,56 @@ pub(super) async fn model_info(
         "output_unit": meta.output_unit,
         "training": meta.report,
     })))
+}
+
+fn model_ref<'a>(machine: &'a Id, surface: &'a Id) -> ModelRef<'a> {
+    ModelRef {
+        machine,
+        surface: Some(surface),
+        kind: MODEL_KIND,
+        path: format!("/v1/machines/{machine}/surfaces/{surface}/step-error-model"),
+        made_by: format!("POST /v1/machines/{machine}/surfaces/{surface}/step-error-model"),
+    }
+}
+
+pub(super) async fn model_versions(
+    State(state): State<AppState>,
+    PathIds([machine, surface]): PathIds<2>,
+) -> ApiResult<ApiJson<Value>> {
+    require_surface(&state, &machine, &surface).await?;
+    Ok(ApiJson(
+        versions::list(&state, &model_ref(&machine, &surface)).await?,
+    ))
+}
+
+pub(super) async fn model_rollback(
+    State(state): State<AppState>,
+    _admin: RequireAdmin,
+    PathIds([machine, surface]): PathIds<2>,
+    ApiJson(req): ApiJson<RollbackRequest>,
+) -> ApiResult<ApiJson<Value>> {
+    require_surface(&state, &machine, &surface).await?;
+    Ok(ApiJson(
+        versions::rollback(&state, &model_ref(&machine, &surface), req).await?,
+    ))
+}
+
+/// `DELETE .../step-error-model`: the model and every kept version, from any instance.
+pub(super) async fn delete_model(
+    State(state): State<AppState>,
+    _admin: RequireAdmin,
+    PathIds([machine, surface]): PathIds<2>,
+) -> ApiResult<StatusCode> {
+    require_surface(&state, &machine, &surface).await?;
+    if !state
+        .store
+        .models()
+        .delete(&machine, Some(&surface), MODEL_KIND)
+        .await?
+    {
+        return Err(model_missing(&machine, &surface));
+    }
+    Ok(StatusCode::NO_CONTENT)
 }
 
 #[derive(Serialize)]

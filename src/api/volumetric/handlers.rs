@@ -18,6 +18,7 @@ use crate::api::error::{ApiError, ApiResult};
 use crate::api::extract::{ApiJson, check_points, decode_json, is_csv_body, read_body};
 use crate::api::id::{Id, PathIds};
 use crate::api::lookup::require_machine;
+use crate::api::model_versions::{self, ModelRef, RollbackRequest};
 use crate::volumetric::{self, TableSpec, VolumetricData, VolumetricMap};
 
 /// Kind under which the map is kept in the model store.
@@ -185,6 +186,38 @@ pub(super) async fn delete_map(
         .delete(&machine, None, MODEL_KIND)
         .await?;
     Ok(StatusCode::NO_CONTENT)
+}
+
+fn map_ref(machine: &Id) -> ModelRef<'_> {
+    ModelRef {
+        machine,
+        surface: None,
+        kind: MODEL_KIND,
+        path: format!("/v1/machines/{machine}/volumetric-map"),
+        made_by: format!("PUT /v1/machines/{machine}/volumetric-map"),
+    }
+}
+
+pub(super) async fn map_versions(
+    State(state): State<AppState>,
+    PathIds([machine]): PathIds<1>,
+) -> ApiResult<ApiJson<serde_json::Value>> {
+    require_machine(&state, &machine).await?;
+    Ok(ApiJson(
+        model_versions::list(&state, &map_ref(&machine)).await?,
+    ))
+}
+
+pub(super) async fn map_rollback(
+    State(state): State<AppState>,
+    _admin: RequireAdmin,
+    PathIds([machine]): PathIds<1>,
+    ApiJson(req): ApiJson<RollbackRequest>,
+) -> ApiResult<ApiJson<serde_json::Value>> {
+    require_machine(&state, &machine).await?;
+    Ok(ApiJson(
+        model_versions::rollback(&state, &map_ref(&machine), req).await?,
+    ))
 }
 
 pub(super) async fn predict(

@@ -1,6 +1,7 @@
 //! Volumetric error maps (openapi.yaml `/v1/machines/{machine}/volumetric-map`; Xiang et al. 2019
 //! and Wang, Dai & Hong; ISO 230-1): `PUT/GET/DELETE /v1/machines/{machine}/volumetric-map`,
-//! `POST .../predict`, `GET .../table` (compensation table CSV). Also the one
+//! `POST .../predict`, `GET .../table` (compensation table CSV), `GET .../versions` and
+//! `POST .../rollback` (every PUT keeps the previous maps). Also the one
 //! `From<volumetric::Error> for ApiError` and [`load_map`] for other capabilities (the gap
 //! diagnosis).
 //!
@@ -15,7 +16,7 @@ use axum::Router;
 use axum::routing::{get, post};
 
 use super::AppState;
-use handlers::{delete_map, get_map, predict, put_map, table};
+use handlers::{delete_map, get_map, map_rollback, map_versions, predict, put_map, table};
 
 pub use handlers::{MODEL_KIND, load_map};
 pub use request::{MAX_EPOCHS, MAX_NODES, MAX_POINTS, MAX_SAMPLE_PASSES};
@@ -32,4 +33,12 @@ pub fn routes() -> Router<AppState> {
             post(predict),
         )
         .route("/v1/machines/{machine}/volumetric-map/table", get(table))
+        .route(
+            "/v1/machines/{machine}/volumetric-map/versions",
+            get(map_versions),
+        )
+        .route(
+            "/v1/machines/{machine}/volumetric-map/rollback",
+            post(map_rollback),
+        )
 }

@@ -1,21 +1,33 @@
-//! Bounded worker pool for CPU-heavy work, off the async runtime.
-//!
-//! At most `workers` closures run at once (on tokio's blocking threads); at most
-//! `workers + queue` are admitted (running or waiting). Beyond that callers get
-//! [`Error::Full`] (answered 503 + Retry-After by `api`) instead of piling up. Background
-//! jobs ([`JobPool::submit`]) are
-//! recorded in the database; the ones a shutdown or crash interrupted are marked failed
-//! when the instance starts again ([`JobPool::start`]).
+//! The worker pool: admission (back-pressure), synchronous work, in-process and stored
+//! jobs, the instance's lease, cancellation and shutdown.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
-use serde::Serialize;
 use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
+use tokio::task::JoinHandle;
 
-use crate::store::{CancelOutcome, JobRecord, Store};
+use super::progress::{Cancel, JobStatus, Progress};
+use super::worker::{claim_loop, finish, new_progress, watch_job};
+use crate::store::{CancelOutcome, Reaped, Store};
+use serde_json::Value;
+
+/// Runs one kind of stored job: reads the job's input (JSON text), reports progress and
+/// returns the result JSON or an error sentence, like a [`JobPool::submit`] closure.
+pub type Runner = Arc<dyn Fn(&str, &Progress) -> Result<Value, String> + Send + Sync>;
+
+/// How many times a stored job is claimed before an interruption fails it instead of
+/// re-queueing it (a job that crashes its instance must not crash them all).
+pub const MAX_ATTEMPTS: i64 = 3;
+
+/// Default lease of an instance: gone when its heartbeat (every third of this) is older.
+pub const DEFAULT_LEASE: Duration = Duration::from_secs(10);
+
+/// How often an idle instance looks for jobs queued through another instance (jobs queued
+/// through this one are taken at once).
+pub const CLAIM_POLL: Duration = Duration::from_millis(250);
 
 /// Seconds a rejected caller is told to wait (`Retry-After`).
 pub const RETRY_AFTER_S: u64 = 2;
@@ -42,159 +54,23 @@ pub enum Error {
     Store(#[from] anyhow::Error),
 }
 
-/// Progress of a background job, a fraction in 0..1, shared with the running closure, and
-/// its cancellation: [`Progress::is_cancelled`] tells long work to stop, and
-/// [`Progress::commit`] is the gate a job passes just before it stores what it made.
-#[derive(Debug, Default)]
-pub struct Progress {
-    bits: AtomicU64,
-    cancelled: AtomicBool,
-    gate: Option<Gate>,
-}
-
-/// Where [`Progress::commit`] claims the right to store: the job's row.
-#[derive(Debug)]
-struct Gate {
-    store: Store,
-    id: String,
-    runtime: tokio::runtime::Handle,
-}
-
-/// The job was cancelled: it must stop and store nothing.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
-#[error("the job was cancelled")]
-pub struct Cancelled;
-
-impl Progress {
-    /// Sets the fraction done (clamped to 0..1; NaN is ignored).
-    pub fn set(&self, fraction: f64) {
-        if fraction.is_nan() {
-            return;
-        }
-        self.bits
-            .store(fraction.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
-    }
-
-    /// The fraction done, 0..1.
-    pub fn get(&self) -> f64 {
-        f64::from_bits(self.bits.load(Ordering::Relaxed))
-    }
-
-    /// True once a client cancelled the job (`DELETE /v1/jobs/{id}` on any instance).
-    pub fn is_cancelled(&self) -> bool {
-        self.cancelled.load(Ordering::Relaxed)
-    }
-
-    fn cancel(&self) {
-        self.cancelled.store(true, Ordering::Relaxed);
-    }
-
-    /// Claims the right to store the job's product (a model): `Err(Cancelled)` when the job
-    /// was cancelled, and then nothing may be stored. The claim is one conditional update of
-    /// the job's row, so it and a cancellation from any instance exclude each other. Call it
-    /// from the job's worker thread (it blocks on the database).
-    pub fn commit(&self) -> Result<(), Cancelled> {
-        if self.is_cancelled() {
-            return Err(Cancelled);
-        }
-        let Some(g) = &self.gate else {
-            return Ok(());
-        };
-        match g.runtime.block_on(g.store.claim_job_commit(&g.id)) {
-            Ok(true) => Ok(()),
-            Ok(false) => {
-                self.cancel();
-                Err(Cancelled)
-            }
-            Err(e) => {
-                // Cannot tell: refuse to store rather than store behind a cancellation.
-                tracing::error!(job = %g.id, "cannot claim the job's commit: {e:#}");
-                Err(Cancelled)
-            }
-        }
-    }
-}
-
-/// What [`JobPool::cancel`] did.
-#[derive(Clone, Debug)]
-pub enum Cancel {
-    /// The job is now `cancelled` (its state as answered).
-    Cancelled(JobStatus),
-    /// The job had already ended, or is storing its result: its status.
-    Ended(JobStatus),
-    /// No such job.
-    Unknown,
-}
-
-/// How often a running job's own instance looks for a cancellation made on another one.
-pub const CANCEL_POLL: Duration = Duration::from_millis(250);
-
-/// Unix ms as RFC 3339 (UTC), for the job times.
-fn rfc3339(ms: i64) -> Option<String> {
-    let t = time::OffsetDateTime::from_unix_timestamp_nanos(i128::from(ms) * 1_000_000).ok()?;
-    t.format(&time::format_description::well_known::Rfc3339)
-        .ok()
-}
-
-/// A job's state as answered by `GET /v1/jobs/{id}` and listed by `GET /v1/jobs`.
-#[derive(Clone, Debug, Serialize)]
-pub struct JobStatus {
-    /// Job id.
-    pub id: String,
-    /// What the job does.
-    pub kind: String,
-    /// `queued`, `running`, `done`, `failed` or `cancelled`.
-    pub state: String,
-    /// 0..1.
-    pub progress: f64,
-    /// The result JSON when done (null otherwise).
-    pub result: Option<serde_json::Value>,
-    /// Why it failed or that it was cancelled (null otherwise).
-    pub error: Option<String>,
-    /// When it was submitted (RFC 3339, UTC).
-    pub created_at: Option<String>,
-    /// When a worker took it (RFC 3339; null while queued).
-    pub started_at: Option<String>,
-    /// When it ended (RFC 3339; null while unfinished).
-    pub finished_at: Option<String>,
-}
-
-impl JobStatus {
-    fn of(rec: JobRecord, live: Option<f64>) -> JobStatus {
-        let progress = match (rec.state.as_str(), live) {
-            ("done", _) => 1.0,
-            ("queued" | "running" | "storing", Some(p)) => p,
-            _ => rec.progress,
-        };
-        let state = if rec.state == "storing" {
-            "running".to_string()
-        } else {
-            rec.state
-        };
-        JobStatus {
-            id: rec.id,
-            kind: rec.kind,
-            state,
-            progress,
-            result: rec.result,
-            error: rec.error,
-            created_at: rfc3339(rec.created_at_ms),
-            started_at: rec.started_at_ms.and_then(rfc3339),
-            finished_at: rec.finished_at_ms.and_then(rfc3339),
-        }
-    }
-}
-
-struct Inner {
-    store: Store,
-    workers: Arc<Semaphore>,
-    admission: Arc<Semaphore>,
-    worker_count: usize,
-    queued: AtomicUsize,
-    running: AtomicUsize,
-    rejected: AtomicU64,
-    live: Mutex<HashMap<String, Arc<Progress>>>,
-    idle: Notify,
+pub(super) struct Inner {
+    pub(super) store: Store,
+    pub(super) workers: Arc<Semaphore>,
+    pub(super) admission: Arc<Semaphore>,
+    pub(super) worker_count: usize,
+    pub(super) queued: AtomicUsize,
+    pub(super) running: AtomicUsize,
+    pub(super) rejected: AtomicU64,
+    pub(super) live: Mutex<HashMap<String, Arc<Progress>>>,
+    pub(super) idle: Notify,
+    /// Wakes the claim loop when a job is queued through this instance.
+    pub(super) work: Notify,
+    pub(super) runners: std::sync::OnceLock<HashMap<String, Runner>>,
+    pub(super) queue: usize,
+    pub(super) lease: Duration,
+    pub(super) claim_loop: Mutex<Option<JoinHandle<()>>>,
+    pub(super) heartbeat: Mutex<Option<JoinHandle<()>>>,
 }
 
 /// The worker pool. Cheap to clone.
@@ -214,10 +90,10 @@ impl std::fmt::Debug for JobPool {
 }
 
 /// Decrements a counter when dropped (keeps gauges right when a request is cancelled).
-struct Count<'a>(&'a AtomicUsize);
+pub(super) struct Count<'a>(&'a AtomicUsize);
 
 impl<'a> Count<'a> {
-    fn up(c: &'a AtomicUsize) -> Self {
+    pub(super) fn up(c: &'a AtomicUsize) -> Self {
         c.fetch_add(1, Ordering::Relaxed);
         Count(c)
     }
@@ -229,22 +105,65 @@ impl Drop for Count<'_> {
     }
 }
 
-/// The message stored for jobs a restart found unfinished.
-pub const INTERRUPTED: &str =
-    "interrupted: the server stopped (shutdown or crash) before this job finished; submit it again";
+/// The message stored for jobs an interruption failed (no stored input, or out of attempts).
+pub const INTERRUPTED: &str = "interrupted: the instance running it stopped (shutdown or crash) \
+     before this job finished; submit it again";
+
+fn log_reaped(what: &str, r: Reaped) {
+    if r.requeued > 0 || r.failed > 0 {
+        tracing::warn!(
+            requeued = r.requeued,
+            failed = r.failed,
+            instances = r.instances,
+            "{what}"
+        );
+    }
+}
 
 impl JobPool {
-    /// Creates the pool (`workers` ≥ 1 running at once, `queue` more waiting) and marks the
-    /// jobs this instance left unfinished at its last stop as failed.
+    /// Creates the pool (`workers` ≥ 1 running at once, `queue` more waiting) with the
+    /// [`DEFAULT_LEASE`]; see [`JobPool::start_with_lease`].
     pub async fn start(store: Store, workers: usize, queue: usize) -> anyhow::Result<JobPool> {
+        Self::start_with_lease(store, workers, queue, DEFAULT_LEASE).await
+    }
+
+    /// Creates the pool, registers this instance with a lease of `lease` (renewed every
+    /// third of it), and re-queues or fails the jobs of instances whose lease expired (now
+    /// and at every heartbeat). Stored jobs run once [`JobPool::serve`] gives the runners.
+    pub async fn start_with_lease(
+        store: Store,
+        workers: usize,
+        queue: usize,
+        lease: Duration,
+    ) -> anyhow::Result<JobPool> {
         let workers = workers.max(1);
-        let failed = store.fail_unfinished_jobs(INTERRUPTED).await?;
-        if failed > 0 {
-            tracing::warn!(
-                failed,
-                "jobs interrupted by the last shutdown are now marked failed"
-            );
-        }
+        let lease = lease.max(Duration::from_millis(300));
+        let lease_ms = i64::try_from(lease.as_millis()).unwrap_or(i64::MAX);
+        store.register_instance(lease_ms).await?;
+        log_reaped(
+            "jobs of instances that are gone: re-queued or failed",
+            store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED).await?,
+        );
+        let hb_store = store.clone();
+        let heartbeat = tokio::spawn(async move {
+            let mut tick = tokio::time::interval(lease / 3);
+            tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            tick.tick().await;
+            loop {
+                tick.tick().await;
+                if let Err(e) = hb_store.heartbeat(lease_ms).await {
+                    tracing::error!("heartbeat failed: {e:#}");
+                    continue;
+                }
+                match hb_store
+                    .reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED)
+                    .await
+                {
+                    Ok(r) => log_reaped("jobs of instances that are gone: re-queued or failed", r),
+                    Err(e) => tracing::error!("cannot look for gone instances: {e:#}"),
+                }
+            }
+        });
         Ok(JobPool {
             inner: Arc::new(Inner {
                 store,
@@ -256,8 +175,64 @@ impl JobPool {
                 rejected: AtomicU64::new(0),
                 live: Mutex::new(HashMap::new()),
                 idle: Notify::new(),
+                work: Notify::new(),
+                runners: std::sync::OnceLock::new(),
+                queue,
+                lease,
+                claim_loop: Mutex::new(None),
+                heartbeat: Mutex::new(Some(heartbeat)),
             }),
         })
+    }
+
+    /// Starts taking stored jobs of the kinds in `runners` from the queue (shared by every
+    /// instance on the database) whenever a worker is free. Call once.
+    pub fn serve(&self, runners: HashMap<String, Runner>) {
+        if self.inner.runners.set(runners).is_err() {
+            tracing::error!("JobPool::serve called twice; the first runners stay");
+            return;
+        }
+        let task = tokio::spawn(claim_loop(self.inner.clone()));
+        *self
+            .inner
+            .claim_loop
+            .lock()
+            .unwrap_or_else(|p| p.into_inner()) = Some(task);
+    }
+
+    /// The lease this instance holds (see [`JobPool::start_with_lease`]).
+    pub fn lease(&self) -> Duration {
+        self.inner.lease
+    }
+
+    /// Queues a stored job: `kind` names its [`Runner`], `input` is the JSON it reads. Any
+    /// instance serving that kind may run it (answer `202 {"job": id}`). [`Error::Full`]
+    /// (503 + Retry-After) when more jobs wait than the queue holds beyond this instance's
+    /// free workers; [`Error::ShuttingDown`] once the pool stopped.
+    pub async fn enqueue(&self, kind: &str, input: String) -> Result<String, Error> {
+        if self.inner.admission.is_closed() {
+            return Err(Error::ShuttingDown);
+        }
+        if !self
+            .inner
+            .runners
+            .get()
+            .is_some_and(|r| r.contains_key(kind))
+        {
+            return Err(Error::Worker(format!("no runner for job kind '{kind}'")));
+        }
+        let waiting = self.inner.store.count_queued_jobs().await?;
+        let room = self.inner.queue + self.inner.workers.available_permits();
+        if waiting >= room as u64 {
+            self.inner.rejected.fetch_add(1, Ordering::Relaxed);
+            return Err(Error::Full {
+                workers: self.inner.worker_count,
+            });
+        }
+        let id = uuid::Uuid::now_v7().to_string();
+        self.inner.store.insert_job(&id, kind, Some(&input)).await?;
+        self.inner.work.notify_one();
+        Ok(id)
     }
 
     fn admit(&self) -> Result<OwnedSemaphorePermit, Error> {
@@ -304,13 +279,15 @@ impl JobPool {
         .map_err(|e| Error::Worker(format!("worker failed: {e}")))
     }
 
-    /// Long work: records a job and returns its id at once (answer `202 {"job": id}`);
-    /// `f` reports progress 0..1 and returns the result JSON or an error sentence.
+    /// In-process long work: records a job and returns its id at once (answer
+    /// `202 {"job": id}`); `f` reports progress 0..1 and returns the result JSON or an error
+    /// sentence. Only this instance can run `f`, so an interruption fails the job; work that
+    /// any instance should be able to run (or resume) goes through [`JobPool::enqueue`].
     /// Poll with `GET /v1/jobs/{id}`. [`Error::Full`] (503 + Retry-After) when the pool is full.
     ///
     /// Cancellation (`DELETE /v1/jobs/{id}`, [`JobPool::cancel`]): a job cancelled while
     /// queued never runs; a running one sees [`Progress::is_cancelled`] (set here, or within
-    /// [`CANCEL_POLL`] when the cancel came through another instance), and whatever it returns
+    /// [`CANCEL_POLL`](super::CANCEL_POLL) when the cancel came through another instance), and whatever it returns
     /// is dropped. A job that stores something (a model) must pass [`Progress::commit`] first.
     pub async fn submit(
         &self,
@@ -319,15 +296,8 @@ impl JobPool {
     ) -> Result<String, Error> {
         let admitted = self.admit()?;
         let id = uuid::Uuid::now_v7().to_string();
-        self.inner.store.insert_job(&id, kind).await?;
-        let progress = Arc::new(Progress {
-            gate: Some(Gate {
-                store: self.inner.store.clone(),
-                id: id.clone(),
-                runtime: tokio::runtime::Handle::current(),
-            }),
-            ..Progress::default()
-        });
+        self.inner.store.insert_job(&id, kind, None).await?;
+        let progress = new_progress(&self.inner, &id);
         self.lock_live().insert(id.clone(), progress.clone());
         self.inner.queued.fetch_add(1, Ordering::Relaxed);
         let inner = self.inner.clone();
@@ -350,35 +320,11 @@ impl JobPool {
                             let _running = Count::up(&inner2.running);
                             f(&p)
                         });
-                        let done = watch_for_cancel(&inner.store, &job_id, &progress, work).await;
-                        Some(done.unwrap_or_else(|e| Err(format!("the job crashed: {e}"))))
+                        Some(watch_job(&inner.store, &job_id, &progress, work).await)
                     }
                 },
             };
-            let saved = match &outcome {
-                None => Ok(false),
-                Some(Ok(v)) => {
-                    inner
-                        .store
-                        .finish_job(&job_id, "done", 1.0, Some(v), None)
-                        .await
-                }
-                Some(Err(msg)) => {
-                    inner
-                        .store
-                        .finish_job(&job_id, "failed", progress.get(), None, Some(msg))
-                        .await
-                }
-            };
-            if let Err(e) = saved {
-                tracing::error!(job = %job_id, "cannot store job outcome: {e:#}");
-            }
-            inner
-                .live
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .remove(&job_id);
-            inner.idle.notify_waiters();
+            finish(&inner, &job_id, &progress, outcome).await;
         });
         Ok(id)
     }
@@ -454,15 +400,26 @@ impl JobPool {
         self.inner.worker_count
     }
 
-    /// Stops admitting work, waits up to `grace` for background jobs to end, then records
-    /// the ones still unfinished as failed. Returns how many were cut off.
+    /// Stops admitting and claiming work, waits up to `grace` for background jobs to end,
+    /// then re-queues the stored jobs still running (another instance, or the next start,
+    /// runs them) and fails the in-process ones, and gives up this instance's lease.
+    /// Returns how many jobs were cut off.
     pub async fn shutdown(&self, grace: Duration) -> anyhow::Result<u64> {
         self.inner.admission.close();
+        if let Some(t) = self
+            .inner
+            .claim_loop
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take()
+        {
+            t.abort();
+        }
         let deadline = Instant::now() + grace;
         loop {
             let notified = self.inner.idle.notified();
             if self.lock_live().is_empty() {
-                return Ok(0);
+                break;
             }
             let left = deadline.saturating_duration_since(Instant::now());
             if left.is_zero() {
@@ -470,32 +427,21 @@ impl JobPool {
             }
             let _ = tokio::time::timeout(left.min(Duration::from_millis(200)), notified).await;
         }
-        let cut = self.inner.store.fail_unfinished_jobs(INTERRUPTED).await?;
-        Ok(cut)
-    }
-}
-
-/// Waits for a job's worker, looking every [`CANCEL_POLL`] whether its row was cancelled
-/// (through another instance) and telling the worker so.
-async fn watch_for_cancel<T>(
-    store: &Store,
-    id: &str,
-    progress: &Progress,
-    work: tokio::task::JoinHandle<T>,
-) -> Result<T, tokio::task::JoinError> {
-    tokio::pin!(work);
-    let mut tick = tokio::time::interval(CANCEL_POLL);
-    tick.tick().await;
-    loop {
-        tokio::select! {
-            done = &mut work => return done,
-            _ = tick.tick(), if !progress.is_cancelled() => {
-                if let Ok(Some(state)) = store.job_state(id).await {
-                    if state == "cancelled" {
-                        progress.cancel();
-                    }
-                }
-            }
+        let cut = self
+            .inner
+            .store
+            .release_own_jobs(MAX_ATTEMPTS, INTERRUPTED)
+            .await?;
+        if let Some(t) = self
+            .inner
+            .heartbeat
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take()
+        {
+            t.abort();
         }
+        self.inner.store.deregister_instance().await?;
+        Ok(cut.requeued + cut.failed)
     }
 }

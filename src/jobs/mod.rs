@@ -1,0 +1,24 @@
+//! Bounded worker pool for CPU-heavy work, off the async runtime.
+//!
+//! At most `workers` closures run at once (on tokio's blocking threads); at most
+//! `workers + queue` are admitted (running or waiting). Beyond that callers get
+//! [`Error::Full`] (answered 503 + Retry-After by `api`) instead of piling up.
+//!
+//! Background jobs are rows in the database. A job with a stored input
+//! ([`JobPool::enqueue`]: a kind and its JSON) runs on whichever instance sharing the
+//! database has a free worker first: each instance's claim loop takes queued jobs of the
+//! kinds it has a [`Runner`] for ([`JobPool::serve`]; `FOR UPDATE SKIP LOCKED` on
+//! PostgreSQL), so a job runs exactly once. In-process work ([`JobPool::submit`], a closure)
+//! runs on the instance that submitted it. Each instance holds a lease renewed by a
+//! heartbeat; the jobs of an instance whose lease expired (crash, kill, lost network) are
+//! re-queued if their input is stored and they have attempts left, failed otherwise, by
+//! whichever live instance notices first. A graceful stop does the same for its own jobs.
+
+mod pool;
+mod progress;
+mod worker;
+
+pub use pool::{
+    CLAIM_POLL, DEFAULT_LEASE, Error, INTERRUPTED, JobPool, MAX_ATTEMPTS, RETRY_AFTER_S, Runner,
+};
+pub use progress::{CANCEL_POLL, Cancel, Cancelled, JobStatus, Progress};

@@ -1,0 +1,172 @@
+//! A job's progress, its cancellation flag and commit gate ([`Progress`]), and its state as
+//! answered ([`JobStatus`]).
+
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::time::Duration;
+
+use serde::Serialize;
+
+use crate::store::{JobRecord, Store};
+
+/// Progress of a background job, a fraction in 0..1, shared with the running closure, and
+/// its cancellation: [`Progress::is_cancelled`] tells long work to stop, and
+/// [`Progress::commit`] is the gate a job passes just before it stores what it made.
+#[derive(Debug, Default)]
+pub struct Progress {
+    bits: AtomicU64,
+    cancelled: AtomicBool,
+    gate: Option<Gate>,
+}
+
+/// Where [`Progress::commit`] claims the right to store: the job's row.
+#[derive(Debug)]
+pub(super) struct Gate {
+    pub(super) store: Store,
+    pub(super) id: String,
+    pub(super) runtime: tokio::runtime::Handle,
+}
+
+/// The job was cancelled: it must stop and store nothing.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("the job was cancelled")]
+pub struct Cancelled;
+
+impl Progress {
+    /// A job's progress whose [`Progress::commit`] goes through `gate`.
+    pub(super) fn with_gate(gate: Gate) -> Progress {
+        Progress {
+            gate: Some(gate),
+            ..Progress::default()
+        }
+    }
+
+    /// Sets the fraction done (clamped to 0..1; NaN is ignored).
+    pub fn set(&self, fraction: f64) {
+        if fraction.is_nan() {
+            return;
+        }
+        self.bits
+            .store(fraction.clamp(0.0, 1.0).to_bits(), Ordering::Relaxed);
+    }
+
+    /// The fraction done, 0..1.
+    pub fn get(&self) -> f64 {
+        f64::from_bits(self.bits.load(Ordering::Relaxed))
+    }
+
+    /// The job's id (`None` for a bare `Progress`, e.g. in tests).
+    pub fn job_id(&self) -> Option<&str> {
+        self.gate.as_ref().map(|g| g.id.as_str())
+    }
+
+    /// True once a client cancelled the job (`DELETE /v1/jobs/{id}` on any instance).
+    pub fn is_cancelled(&self) -> bool {
+        self.cancelled.load(Ordering::Relaxed)
+    }
+
+    pub(super) fn cancel(&self) {
+        self.cancelled.store(true, Ordering::Relaxed);
+    }
+
+    /// Claims the right to store the job's product (a model): `Err(Cancelled)` when the job
+    /// was cancelled, and then nothing may be stored. The claim is one conditional update of
+    /// the job's row, so it and a cancellation from any instance exclude each other. Call it
+    /// from the job's worker thread (it blocks on the database).
+    pub fn commit(&self) -> Result<(), Cancelled> {
+        if self.is_cancelled() {
+            return Err(Cancelled);
+        }
+        let Some(g) = &self.gate else {
+            return Ok(());
+        };
+        match g.runtime.block_on(g.store.claim_job_commit(&g.id)) {
+            Ok(true) => Ok(()),
+            Ok(false) => {
+                self.cancel();
+                Err(Cancelled)
+            }
+            Err(e) => {
+                // Cannot tell: refuse to store rather than store behind a cancellation.
+                tracing::error!(job = %g.id, "cannot claim the job's commit: {e:#}");
+                Err(Cancelled)
+            }
+        }
+    }
+}
+
+/// What [`JobPool::cancel`](super::JobPool::cancel) did.
+#[derive(Clone, Debug)]
+pub enum Cancel {
+    /// The job is now `cancelled` (its state as answered).
+    Cancelled(JobStatus),
+    /// The job had already ended, or is storing its result: its status.
+    Ended(JobStatus),
+    /// No such job.
+    Unknown,
+}
+
+/// How often a running job's own instance looks for a cancellation made on another one.
+pub const CANCEL_POLL: Duration = Duration::from_millis(250);
+
+/// Unix ms as RFC 3339 (UTC), for the job times.
+fn rfc3339(ms: i64) -> Option<String> {
+    let t = time::OffsetDateTime::from_unix_timestamp_nanos(i128::from(ms) * 1_000_000).ok()?;
+    t.format(&time::format_description::well_known::Rfc3339)
+        .ok()
+}
+
+/// A job's state as answered by `GET /v1/jobs/{id}` and listed by `GET /v1/jobs`.
+#[derive(Clone, Debug, Serialize)]
+pub struct JobStatus {
+    /// Job id.
+    pub id: String,
+    /// What the job does.
+    pub kind: String,
+    /// `queued`, `running`, `done`, `failed` or `cancelled`.
+    pub state: String,
+    /// 0..1.
+    pub progress: f64,
+    /// The result JSON when done (null otherwise).
+    pub result: Option<serde_json::Value>,
+    /// Why it failed or that it was cancelled (null otherwise).
+    pub error: Option<String>,
+    /// When it was submitted (RFC 3339, UTC).
+    pub created_at: Option<String>,
+    /// When a worker took it (RFC 3339; null while queued).
+    pub started_at: Option<String>,
+    /// When it ended (RFC 3339; null while unfinished).
+    pub finished_at: Option<String>,
+    /// The instance running it or that ran it last (null while queued unclaimed).
+    pub instance: Option<String>,
+    /// How many times an instance took it (more than 1: re-queued after its instance
+    /// stopped).
+    pub attempts: i64,
+}
+
+impl JobStatus {
+    pub(super) fn of(rec: JobRecord, live: Option<f64>) -> JobStatus {
+        let progress = match (rec.state.as_str(), live) {
+            ("done", _) => 1.0,
+            ("queued" | "running" | "storing", Some(p)) => p,
+            _ => rec.progress,
+        };
+        let state = if rec.state == "storing" {
+            "running".to_string()
+        } else {
+            rec.state
+        };
+        JobStatus {
+            id: rec.id,
+            kind: rec.kind,
+            state,
+            progress,
+            result: rec.result,
+            error: rec.error,
+            created_at: rfc3339(rec.created_at_ms),
+            started_at: rec.started_at_ms.and_then(rfc3339),
+            finished_at: rec.finished_at_ms.and_then(rfc3339),
+            instance: Some(rec.owner).filter(|o| !o.is_empty()),
+            attempts: rec.attempts,
+        }
+    }
+}

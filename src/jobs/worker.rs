@@ -1,0 +1,144 @@
+//! The claim loop that takes stored jobs from the shared queue, and what every job does
+//! around its work: progress stored in its row, cancellation and takeover noticed, outcome
+//! recorded.
+
+use std::sync::Arc;
+
+use serde_json::Value;
+use tokio::sync::OwnedSemaphorePermit;
+use tokio::task::JoinHandle;
+
+use super::pool::{CLAIM_POLL, Count, Inner};
+use super::progress::{CANCEL_POLL, Gate, Progress};
+use crate::store::{ClaimedJob, Store};
+
+/// A job's progress with its commit gate on this instance's store.
+pub(super) fn new_progress(inner: &Inner, id: &str) -> Arc<Progress> {
+    Arc::new(Progress::with_gate(Gate {
+        store: inner.store.clone(),
+        id: id.to_string(),
+        runtime: tokio::runtime::Handle::current(),
+    }))
+}
+
+/// Records a job's outcome (`None`: it never ran) and forgets its live progress.
+pub(super) async fn finish(
+    inner: &Inner,
+    id: &str,
+    progress: &Progress,
+    outcome: Option<Result<Value, String>>,
+) {
+    let saved = match &outcome {
+        None => Ok(false),
+        Some(Ok(v)) => inner.store.finish_job(id, "done", 1.0, Some(v), None).await,
+        Some(Err(msg)) => {
+            inner
+                .store
+                .finish_job(id, "failed", progress.get(), None, Some(msg))
+                .await
+        }
+    };
+    if let Err(e) = saved {
+        tracing::error!(job = %id, "cannot store job outcome: {e:#}");
+    }
+    inner
+        .live
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .remove(id);
+    inner.idle.notify_waiters();
+}
+
+/// Takes stored jobs from the shared queue while this instance has a free worker (and room
+/// under its admission cap), waking when a job is queued here or every [`CLAIM_POLL`].
+pub(super) async fn claim_loop(inner: Arc<Inner>) {
+    let kinds: Vec<String> = inner
+        .runners
+        .get()
+        .map(|r| r.keys().cloned().collect())
+        .unwrap_or_default();
+    loop {
+        // Claim only when a worker looks free, without holding a permit while asking the
+        // database (a held permit would turn synchronous requests away).
+        if inner.admission.is_closed() {
+            return;
+        }
+        if inner.workers.available_permits() > 0 && inner.admission.available_permits() > 0 {
+            match inner.store.claim_job(&kinds).await {
+                Ok(Some(job)) => {
+                    // A synchronous request may have taken the slot meanwhile: wait for it.
+                    let Ok(admitted) = inner.admission.clone().acquire_owned().await else {
+                        return;
+                    };
+                    let Ok(worker) = inner.workers.clone().acquire_owned().await else {
+                        return;
+                    };
+                    tokio::spawn(run_claimed(inner.clone(), job, (admitted, worker)));
+                    continue;
+                }
+                Ok(None) => {}
+                Err(e) => tracing::error!("cannot claim a job: {e:#}"),
+            }
+        }
+        tokio::select! {
+            () = inner.work.notified() => {}
+            () = tokio::time::sleep(CLAIM_POLL) => {}
+        }
+    }
+}
+
+/// Runs a claimed stored job on a worker and records its outcome.
+async fn run_claimed(
+    inner: Arc<Inner>,
+    job: ClaimedJob,
+    permits: (OwnedSemaphorePermit, OwnedSemaphorePermit),
+) {
+    let progress = new_progress(&inner, &job.id);
+    inner
+        .live
+        .lock()
+        .unwrap_or_else(|p| p.into_inner())
+        .insert(job.id.clone(), progress.clone());
+    let runner = inner.runners.get().and_then(|r| r.get(&job.kind)).cloned();
+    let p = progress.clone();
+    let inner2 = inner.clone();
+    let kind = job.kind.clone();
+    let input = job.input;
+    let work = tokio::task::spawn_blocking(move || {
+        let _permits = permits;
+        let _running = Count::up(&inner2.running);
+        match runner {
+            Some(run) => run(&input, &p),
+            None => Err(format!("this instance has no runner for job kind '{kind}'")),
+        }
+    });
+    let outcome = watch_job(&inner.store, &job.id, &progress, work).await;
+    finish(&inner, &job.id, &progress, Some(outcome)).await;
+}
+
+/// Waits for a job's worker, storing its progress every [`CANCEL_POLL`] (so every instance
+/// can answer it) and telling the worker to stop when the row says the job is no longer
+/// running here (cancelled through any instance, or taken over after this instance was
+/// judged gone). A panic in the worker becomes an error sentence.
+pub(super) async fn watch_job(
+    store: &Store,
+    id: &str,
+    progress: &Progress,
+    work: JoinHandle<Result<Value, String>>,
+) -> Result<Value, String> {
+    tokio::pin!(work);
+    let mut tick = tokio::time::interval(CANCEL_POLL);
+    tick.tick().await;
+    loop {
+        tokio::select! {
+            done = &mut work => {
+                return done.unwrap_or_else(|e| Err(format!("the job crashed: {e}")));
+            }
+            _ = tick.tick(), if !progress.is_cancelled() => {
+                if let Ok(false) = store.report_job_progress(id, progress.get()).await {
+                    progress.cancel();
+                }
+            }
+        }
+    }
+}
