@@ -26,6 +26,7 @@
 //! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check; the motion-gap request.
 //! - [`step_error`]: step error as a capability: flat segment batches solved on all cores, network training and the model file's metadata.
 //! - [`codec`]: hand-written fast decoders for large bodies (step-error segment batches), with their own error.
+//! - [`metrology`]: ISO 230-2 positioning accuracy and repeatability (table or logged run) and ISO 230-4 circular tests (orthogonal least-squares circle, G, F, H).
 //! - [`wire`]: serde types of the HTTP bodies that both the server and the CLI use.
 
 // Every public item says what it is (units for numbers); CI's clippy -D warnings makes it an
@@ -41,6 +42,7 @@ pub mod config;
 pub mod gap;
 pub mod geometry;
 pub mod jobs;
+pub mod metrology;
 pub mod motion;
 pub mod nn;
 pub mod numeric;

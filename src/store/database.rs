@@ -39,7 +39,7 @@ pub(crate) fn now_ms() -> i64 {
 }
 
 fn migrator(backend: Backend) -> Migrator {
-    let scripts: [(i64, &'static str, &'static str); 2] = match backend {
+    let scripts: [(i64, &'static str, &'static str); 3] = match backend {
         Backend::Sqlite => [
             (
                 1,
@@ -50,6 +50,11 @@ fn migrator(backend: Backend) -> Migrator {
                 2,
                 "job_times",
                 include_str!("../../migrations/sqlite/0002_job_times.sql"),
+            ),
+            (
+                3,
+                "iso230_runs",
+                include_str!("../../migrations/sqlite/0003_iso230_runs.sql"),
             ),
         ],
         Backend::Postgres => [
@@ -62,6 +67,11 @@ fn migrator(backend: Backend) -> Migrator {
                 2,
                 "job_times",
                 include_str!("../../migrations/postgres/0002_job_times.sql"),
+            ),
+            (
+                3,
+                "iso230_runs",
+                include_str!("../../migrations/postgres/0003_iso230_runs.sql"),
             ),
         ],
     };

@@ -9,6 +9,7 @@
 mod codec;
 mod database;
 mod docs;
+mod iso230;
 mod jobs;
 mod machines;
 mod measurements;
@@ -17,6 +18,7 @@ mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
 pub use database::{Backend, Store};
+pub use iso230::Iso230Run;
 pub use jobs::{CancelOutcome, JobRecord};
 pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};

@@ -8,10 +8,12 @@
 #[macro_use]
 mod helpers;
 
+mod cli_client;
 mod compensated;
 mod contour;
 mod decomposition;
 mod gap;
+mod iso230;
 mod jobs_cancel;
 mod jobs_models;
 mod resources;
