@@ -14,7 +14,7 @@
 //! - [`jobs`]: bounded worker pool for CPU-heavy work off the async runtime, with progress and back-pressure.
 //! - [`config`]: the service configuration (flags and environment, one struct).
 //! - [`server`]: starts the HTTP service (store, jobs, router, listener) and shuts it down gracefully.
-//! - [`cli`]: command-line entry points: `serve` (with `--demo`) and one subcommand per capability.
+//! - [`cli`]: command-line entry points: `serve` (with `--demo`), one subcommand per capability, and the client commands of a running service (upload, compensation, jobs, iso230-2/-4).
 //! - [`numeric`]: the toolbox every core may use: Brent line search, tridiagonal solve, B-spline basis, difference penalties, least squares, vec3, thread splitting.
 //! - [`geometry`]: cubic splines, height surfaces, iso-parametric path sampling, exact ball-end step error (Zhang et al. 2023) and its network features.
 //! - [`nn`]: small dense networks (MLP): z-score, dropout, SGD-momentum/Adam, early stopping, binary model format (Zhang et al. 2023; Xiang et al. 2019; Wang, Dai & Hong).

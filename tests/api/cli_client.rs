@@ -411,6 +411,7 @@ async fn every_subcommand_help_has_an_example_and_the_exit_codes_are_listed() {
         .unwrap()
         .lines()
         .take_while(|l| !l.trim().is_empty())
+        .filter(|l| l.starts_with("  ") && !l.starts_with("   "))
         .filter_map(|l| l.split_whitespace().next().map(str::to_string))
         .filter(|s| s != "help")
         .collect();
