@@ -38,12 +38,12 @@ fn text(out: &Output) -> (String, String) {
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn upload_then_compensation_and_exit_codes() {
     let app = spawn_app().await;
-    seed_machine_and_surface(&app, "m1", "s1", 4, 3).await;
+    seed_machine_and_surface(&app, "m1", "s1", 5, 4).await;
     let dir = tempfile::tempdir().unwrap();
     let csv = dir.path().join("probe.csv");
     let mut body = String::from("deviation\n");
-    for k in 0..12 {
-        body += &format!("{}\n", 0.001 * (k as f64 - 6.0));
+    for k in 0..20 {
+        body += &format!("{}\n", 0.001 * (k as f64 - 10.0));
     }
     std::fs::write(&csv, body).unwrap();
     let csv = csv.to_str().unwrap().to_string();
@@ -67,7 +67,7 @@ async fn upload_then_compensation_and_exit_codes() {
         .json()
         .await
         .unwrap();
-    assert_eq!(m["n"], 12);
+    assert_eq!(m["n"], 20);
     // With a chosen id.
     let out = truecut(args(&[
         "upload", "--server", &app.addr, "--id", "run-7", "m1", "s1", &csv,
@@ -89,7 +89,7 @@ async fn upload_then_compensation_and_exit_codes() {
     assert!(out.status.success(), "{stderr}");
     let lines: Vec<&str> = stdout.lines().collect();
     assert_eq!(lines[0], "x,y,z,i,j,k,offset");
-    assert_eq!(lines.len(), 13);
+    assert_eq!(lines.len(), 21);
     let out = truecut(args(&[
         "compensation",
         "--server",
@@ -103,7 +103,7 @@ async fn upload_then_compensation_and_exit_codes() {
     ]))
     .await;
     let v: Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(v["points"].as_array().unwrap().len(), 12);
+    assert_eq!(v["points"].as_array().unwrap().len(), 20);
 
     // 3: the server refused (unknown surface), with its sentence.
     let out = truecut(args(&["upload", "--server", &app.addr, "m1", "nope", &csv])).await;
@@ -139,7 +139,7 @@ async fn upload_then_compensation_and_exit_codes() {
         crate::helpers::spawn_app_with(|c| c.tokens = Some("w-token write, a-token admin".into()))
             .await;
     secured.token = Some("a-token".into());
-    seed_machine_and_surface(&secured, "m1", "s1", 4, 3).await;
+    seed_machine_and_surface(&secured, "m1", "s1", 5, 4).await;
     let out = truecut(args(&[
         "upload",
         "--server",
@@ -333,7 +333,7 @@ async fn iso_files_locally_and_on_the_server() {
     assert_eq!(out.status.code(), Some(1));
     assert!(text(&out).1.contains("at least 2 cycles"));
 
-    // ISO 230-4: a three-lobe circle and its reverse (H = 16 µm).
+    // ISO 230-4: a three-lobe circle and its reverse (G = 8 µm, H = 8 µm).
     let ring = |sign: f64| {
         let mut s = String::from("x,y\n");
         for k in 0..360 {
@@ -362,7 +362,7 @@ async fn iso_files_locally_and_on_the_server() {
     let (stdout, stderr) = text(&local);
     assert!(local.status.success(), "{stderr}");
     assert!(
-        stdout.contains("G     8.00") && stdout.contains("H    16.00"),
+        stdout.contains("G     8.00") && stdout.contains("H     8.00"),
         "{stdout}"
     );
     let remote = truecut(args(&[
@@ -410,6 +410,7 @@ async fn every_subcommand_help_has_an_example_and_the_exit_codes_are_listed() {
         .nth(1)
         .unwrap()
         .lines()
+        .skip(1)
         .take_while(|l| !l.trim().is_empty())
         .filter(|l| l.starts_with("  ") && !l.starts_with("   "))
         .filter_map(|l| l.split_whitespace().next().map(str::to_string))

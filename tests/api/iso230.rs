@@ -145,7 +145,7 @@ async fn iso230_2_refusals_and_warnings() {
 fn logged_run() -> Value {
     let mut c: Vec<f64> = vec![-2.0; 50];
     let mut dev: Vec<f64> = vec![0.0; 50];
-    let mut go = |c: &mut Vec<f64>, dev: &mut Vec<f64>, to: f64, dwell: usize, d: f64| {
+    let go = |c: &mut Vec<f64>, dev: &mut Vec<f64>, to: f64, dwell: usize, d: f64| {
         let from = *c.last().unwrap();
         let steps = ((to - from).abs() / 0.2).ceil() as usize;
         for k in 1..=steps {
@@ -192,11 +192,12 @@ async fn iso230_2_logged_run_finds_targets_directions_and_settled_readings() {
         .map(|t| t["target"].as_f64().unwrap())
         .collect();
     assert_eq!(targets, vec![0.0, 10.0, 20.0, 30.0, 40.0]);
-    // Every reading +2 µm up, −1 µm down: B = 3 µm, E = 3 µm, s = 0, R = 3 µm, A = 3 µm.
-    close(&a, "B", 3.0);
-    close(&a, "E", 3.0);
-    close(&a, "R", 3.0);
-    assert!(um(&a, "E_fwd").abs() < 1e-6);
+    // Every reading +2 µm up, −1 µm down: B = 3 µm, E = 3 µm, s = 0, R = 3 µm, A = 3 µm
+    // (to the few nm the lag's rest inside the 10 nm settling floor leaves).
+    for f in ["B", "E", "R"] {
+        assert!((um(&a, f) - 3.0).abs() < 0.01, "{f}: {} µm", um(&a, f));
+    }
+    assert!(um(&a, "E_fwd").abs() < 0.01);
     let used = a["used"].as_array().unwrap();
     assert_eq!(used.len(), 30);
     assert!(
@@ -239,7 +240,7 @@ async fn iso230_4_closed_form_circles() {
     close(&a, "radius_fit", 50003.0);
     assert!((a["centre"][0].as_f64().unwrap() - 12.5).abs() < 1e-9);
     assert!(a.get("H").is_none());
-    // A reverse run with the opposite lobes: H = 2·4 µm at the lobe peaks.
+    // A reverse run with the opposite lobes: the radii differ by 2·4 µm·cos 3θ, so H = 8 µm.
     let rev = ring([12.5, -7.25], 360, |t| 50.003 - 0.004 * (3.0 * t).cos());
     let r = app
         .post_json(
@@ -248,7 +249,7 @@ async fn iso230_4_closed_form_circles() {
         )
         .await;
     let a: Value = r.json().await.unwrap();
-    close(&a, "H", 16.0);
+    close(&a, "H", 8.0);
     close(&a["reverse"], "G", 8.0);
     println!(
         "ISO 230-4 three-lobe circle over HTTP: G {:.2} F_max {:.2} F_min {:.2} H {:.2} µm",
