@@ -208,7 +208,7 @@ async fn jobs_submit_wait_and_a_cancelled_job_exits_5() {
     let long = dir.path().join("long.json");
     std::fs::write(
         &long,
-        json!({"tool_radius": 5.0, "segments": s["segments"], "epochs": 10_000_000}).to_string(),
+        json!({"tool_radius": 5.0, "segments": s["segments"], "epochs": 20_000}).to_string(),
     )
     .unwrap();
     let out = truecut(args(&[
