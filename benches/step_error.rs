@@ -490,7 +490,8 @@ fn http() {
         let config = truecut::config::Config::new("127.0.0.1:0".parse().unwrap(), dir.clone());
         let server = truecut::server::start(&config).await.unwrap();
         let url = format!("http://{}/v1/step-error", server.addr());
-        let client = reqwest::Client::new();
+        truecut::cli::client::install_crypto_provider();
+    let client = reqwest::Client::new();
         let mut best = f64::INFINITY;
         for _ in 0..5 {
             let t = Instant::now();

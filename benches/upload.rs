@@ -58,6 +58,7 @@ async fn run(label: &str, database_url: Option<String>) -> anyhow::Result<Figure
     config.database_url = database_url;
     let server = truecut::server::start(&config).await?;
     let base = format!("http://{}", server.addr());
+    truecut::cli::client::install_crypto_provider();
     let client = reqwest::Client::new();
     let r = client
         .put(format!("{base}/v1/machines/bench"))

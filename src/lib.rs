@@ -14,7 +14,7 @@
 //! - [`jobs`]: bounded worker pool for CPU-heavy work off the async runtime, with progress and back-pressure.
 //! - [`config`]: the service configuration (flags and environment, one struct).
 //! - [`server`]: starts the HTTP service (store, jobs, router, listener) and shuts it down gracefully.
-//! - [`cli`]: command-line entry points: `serve` (with `--demo`) and one subcommand per capability.
+//! - [`cli`]: command-line entry points: `serve` (with `--demo`), one subcommand per capability, and the client commands of a running service (upload, compensation, jobs, iso230-2/-4).
 //! - [`numeric`]: the toolbox every core may use: Brent line search, tridiagonal solve, B-spline basis, difference penalties, least squares, vec3, thread splitting.
 //! - [`geometry`]: cubic splines, height surfaces, iso-parametric path sampling, exact ball-end step error (Zhang et al. 2023) and its network features.
 //! - [`nn`]: small dense networks (MLP): z-score, dropout, SGD-momentum/Adam, early stopping, binary model format (Zhang et al. 2023; Xiang et al. 2019; Wang, Dai & Hong).
@@ -26,6 +26,7 @@
 //! - [`gap`]: sim-to-real gap diagnosis (motion and part): effects library re-simulated, localisation, blocked-CV selection, self-check; the motion-gap request.
 //! - [`step_error`]: step error as a capability: flat segment batches solved on all cores, network training and the model file's metadata.
 //! - [`codec`]: hand-written fast decoders for large bodies (step-error segment batches), with their own error.
+//! - [`metrology`]: ISO 230-2 positioning accuracy and repeatability (table or logged run) and ISO 230-4 circular tests (orthogonal least-squares circle, G, F, H).
 //! - [`wire`]: serde types of the HTTP bodies that both the server and the CLI use.
 
 // Every public item says what it is (units for numbers); CI's clippy -D warnings makes it an
@@ -41,6 +42,7 @@ pub mod config;
 pub mod gap;
 pub mod geometry;
 pub mod jobs;
+pub mod metrology;
 pub mod motion;
 pub mod nn;
 pub mod numeric;

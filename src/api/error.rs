@@ -6,7 +6,8 @@ use axum::http::{HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 
 use crate::{
-    cam, codec, compensation, gap, geometry, jobs, motion, nn, signal, step_error, volumetric,
+    cam, codec, compensation, gap, geometry, jobs, metrology, motion, nn, signal, step_error,
+    volumetric,
 };
 
 /// An error answered to an HTTP client. 4xx variants carry a sentence saying what to fix;
@@ -398,6 +399,21 @@ impl From<step_error::Error> for ApiError {
             E::TooFewToSplit => ApiError::unprocessable(e.to_string()),
             E::Metadata(_) => ApiError::internal(e),
             E::Cancelled => ApiError::conflict(e.to_string()),
+        }
+    }
+}
+
+/// Malformed numbers and shapes are 400; a table or run with too few targets or cycles to
+/// compute the figures, or points that make no circle, are 422 (well-formed, unusable).
+impl From<metrology::Error> for ApiError {
+    fn from(e: metrology::Error) -> Self {
+        use metrology::Error as E;
+        match e {
+            E::NonFinite { .. }
+            | E::LengthMismatch { .. }
+            | E::DuplicateTarget { .. }
+            | E::Invalid { .. } => ApiError::bad_request(e.to_string()),
+            E::TooFew { .. } | E::Degenerate { .. } => ApiError::unprocessable(e.to_string()),
         }
     }
 }

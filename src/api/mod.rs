@@ -15,6 +15,8 @@ pub mod extract;
 pub mod gap;
 pub mod health;
 pub mod id;
+pub mod iso230;
+pub mod iso230_runs;
 pub mod jobs;
 pub mod lookup;
 pub mod machines;
@@ -76,6 +78,8 @@ pub fn router(state: AppState) -> Router {
         .merge(decomposition::routes())
         .merge(compensation::routes())
         .merge(compensated::routes())
+        .merge(iso230::routes())
+        .merge(iso230_runs::routes())
         .fallback(middleware::fallback)
         // Innermost first: auth sees only routed requests; the problem+json rewrite covers
         // framework rejections (405, path errors); metrics see the final status.

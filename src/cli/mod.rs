@@ -1,19 +1,27 @@
 //! Command-line entry points. Each subcommand lives in its own file with
-//! `pub struct Args` (clap) and `pub fn run(args: Args) -> anyhow::Result<()>`.
+//! `pub struct Args` (clap) and `pub fn run(args: Args) -> anyhow::Result<()>`. The client
+//! commands (`upload`, `compensation`, `jobs`, `iso230-2`/`iso230-4` with `--server`) talk
+//! to a running service through `client` and the bodies of `wire`; [`exit_code`] maps their
+//! failures to the exit codes `truecut --help` lists.
 
+pub mod client;
+pub mod compensation;
 pub mod contour;
 pub mod decompose;
 pub mod demo;
 pub mod gap;
+pub mod iso;
+pub mod jobs;
 pub mod serve;
 pub mod step;
+pub mod upload;
 pub mod volumetric;
 
 use clap::{Parser, Subcommand};
 
 /// truecut: makes CNC machine tools cut closer to the drawing.
 #[derive(Debug, Parser)]
-#[command(name = "truecut", version, about)]
+#[command(name = "truecut", version, about, after_help = client::EXIT_CODES)]
 pub struct Cli {
     /// What to do.
     #[command(subcommand)]
@@ -24,18 +32,42 @@ pub struct Cli {
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Serve the REST API until SIGINT/SIGTERM (`--demo` loads a demo machine and surface).
+    #[command(
+        after_help = "Example:\n  truecut serve --demo --addr 127.0.0.1:8080 --data-dir ./truecut-data"
+    )]
     Serve(crate::config::Config),
     /// Predict the contour error of a G-code program on a machine (machine JSON file or stored id).
+    #[command(
+        after_help = "Example:\n  truecut contour part.nc --machine machine.json --output answer.json"
+    )]
     Contour(contour::Args),
     /// Split a machining error (CSV or JSON) into systematic and random parts (Chen et al. 2024).
+    #[command(after_help = "Example:\n  truecut decompose errors.csv --grid 45,45 > parts.csv")]
     Decompose(decompose::Args),
     /// Sim-to-real gap diagnosis: `selfcheck`, `diagnose` (a motion body) or `csv` (a trace).
+    #[command(
+        after_help = "Example:\n  truecut gap selfcheck --cases 90\n  truecut gap diagnose --machine machine.json --body motion.json"
+    )]
     Gap(gap::Args),
     /// Fit a volumetric error map to measured nodes (CSV), export a compensation table.
+    #[command(after_help = "Example:\n  truecut volumetric --synthetic 7,6,5 > grid.csv")]
     Volumetric(volumetric::Args),
     /// Step error of ball-end toolpaths (Zhang et al. 2023): `exact`, `samples`, `train`,
     /// `predict`.
+    #[command(after_help = "Example:\n  truecut step exact --help")]
     Step(step::Args),
+    /// Upload a probe measurement (CSV or JSON) to a running service; prints the new id.
+    Upload(upload::Args),
+    /// Fetch the compensated points of a stored measurement from a running service (CSV).
+    Compensation(compensation::Args),
+    /// Background jobs of a running service: list, get (--wait), cancel, submit (--wait).
+    Jobs(jobs::Args),
+    /// ISO 230-2:2014 positioning accuracy and repeatability of an axis (table or logged run).
+    #[command(name = "iso230-2")]
+    Iso2302(iso::Args2),
+    /// ISO 230-4:2005 circular test (G, F, H), or its simulation on a stored machine.
+    #[command(name = "iso230-4")]
+    Iso2304(iso::Args4),
 }
 
 /// Runs a parsed command line.
@@ -47,7 +79,17 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Gap(a) => gap::run(a),
         Command::Volumetric(a) => volumetric::run(a),
         Command::Step(a) => step::run(a),
+        Command::Upload(a) => upload::run(a),
+        Command::Compensation(a) => compensation::run(a),
+        Command::Jobs(a) => jobs::run(a),
+        Command::Iso2302(a) => iso::run_2(a),
+        Command::Iso2304(a) => iso::run_4(a),
     }
+}
+
+/// The process exit code for a command's error (see [`client::EXIT_CODES`]).
+pub fn exit_code(err: &anyhow::Error) -> u8 {
+    client::exit_code(err)
 }
 
 /// Logs to stderr; level from `RUST_LOG` (default `info`, sqlx at `warn`).

@@ -39,7 +39,7 @@ pub(crate) fn now_ms() -> i64 {
 }
 
 fn migrator(backend: Backend) -> Migrator {
-    let scripts: [(i64, &'static str, &'static str); 3] = match backend {
+    let scripts: [(i64, &'static str, &'static str); 4] = match backend {
         Backend::Sqlite => [
             (
                 1,
@@ -55,6 +55,11 @@ fn migrator(backend: Backend) -> Migrator {
                 3,
                 "scale_out",
                 include_str!("../../migrations/sqlite/0003_scale_out.sql"),
+            ),
+            (
+                4,
+                "iso230_runs",
+                include_str!("../../migrations/sqlite/0004_iso230_runs.sql"),
             ),
         ],
         Backend::Postgres => [
@@ -72,6 +77,11 @@ fn migrator(backend: Backend) -> Migrator {
                 3,
                 "scale_out",
                 include_str!("../../migrations/postgres/0003_scale_out.sql"),
+            ),
+            (
+                4,
+                "iso230_runs",
+                include_str!("../../migrations/postgres/0004_iso230_runs.sql"),
             ),
         ],
     };

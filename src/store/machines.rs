@@ -92,6 +92,7 @@ impl Store {
             "DELETE FROM docs WHERE machine = $1",
             "DELETE FROM model_versions WHERE machine = $1",
             "DELETE FROM models WHERE machine = $1",
+            "DELETE FROM iso230_runs WHERE machine = $1",
         ] {
             sqlx::query(sql)
                 .bind(machine.to_string())

@@ -2,3 +2,4 @@
 //! use, so the two cannot drift: one module per resource.
 
 pub mod contour;
+pub mod iso230;

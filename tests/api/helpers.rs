@@ -75,6 +75,8 @@ async fn launch(
     let server = truecut::server::start(&config)
         .await
         .expect("test server failed to start");
+    // reqwest is built with rustls but no default crypto provider (Cargo.toml).
+    truecut::cli::client::install_crypto_provider();
     TestApp {
         addr: format!("http://{}", server.addr()),
         client: reqwest::Client::new(),

@@ -8,12 +8,14 @@
 #[macro_use]
 mod helpers;
 
+mod cli_client;
 mod compensated;
 mod contour;
 mod crash;
 mod decomposition;
 mod gap;
 mod instances;
+mod iso230;
 mod jobs_cancel;
 mod jobs_models;
 mod resources;

@@ -294,6 +294,7 @@ async fn binary_serves_demo_and_exits_0_on_sigterm() {
         &data,
         "--demo",
     ]);
+    truecut::cli::client::install_crypto_provider();
     let client = reqwest::Client::new();
     let r = client
         .get(format!(

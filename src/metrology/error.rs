@@ -1,0 +1,66 @@
+//! The one error type of the metrology core.
+
+/// Why an ISO 230-2 or ISO 230-4 evaluation could not be made; each sentence names the input
+/// to fix.
+#[non_exhaustive]
+#[derive(Debug, thiserror::Error, Clone, PartialEq)]
+pub enum Error {
+    /// A value is NaN or infinite.
+    #[error("{field}[{index}] is not a finite number; send finite mm")]
+    NonFinite {
+        /// Name of the array in the request.
+        field: String,
+        /// Index of the first bad entry.
+        index: usize,
+    },
+    /// Two arrays that must have one entry each per target (or per sample) do not.
+    #[error("{field} has {got} entries but {expected} are expected ({why})")]
+    LengthMismatch {
+        /// Name of the array in the request.
+        field: String,
+        /// Entries it has.
+        got: usize,
+        /// Entries it must have.
+        expected: usize,
+        /// What the length must match.
+        why: &'static str,
+    },
+    /// Too few targets or cycles to compute the figures at all.
+    #[error("{field}: {got} is too few; {need}")]
+    TooFew {
+        /// What is counted (e.g. `targets`, `forward[2] cycles`).
+        field: String,
+        /// How many were sent or found.
+        got: usize,
+        /// What is needed, as a sentence.
+        need: &'static str,
+    },
+    /// The same target position appears twice.
+    #[error("targets[{second}] = {value} mm repeats targets[{first}]; each target position once")]
+    DuplicateTarget {
+        /// Index of the first occurrence.
+        first: usize,
+        /// Index of the repeat.
+        second: usize,
+        /// The repeated position, mm.
+        value: f64,
+    },
+    /// A parameter outside its range.
+    #[error("{field} = {value} is out of range: {reason}")]
+    Invalid {
+        /// Name of the parameter.
+        field: &'static str,
+        /// The value sent.
+        value: f64,
+        /// The allowed range, as a sentence.
+        reason: &'static str,
+    },
+    /// The points do not define a circle (collinear, coincident, or too few).
+    #[error("{field}: the points do not define a circle ({reason})")]
+    Degenerate {
+        /// Name of the point array.
+        field: &'static str,
+        /// Why, as a sentence.
+        reason: String,
+    },
+}

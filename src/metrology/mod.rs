@@ -1,0 +1,21 @@
+//! Machine-tool metrology by the standards: ISO 230-2:2014 positioning accuracy and
+//! repeatability of an axis (from a table of measured positions or from a logged positioning
+//! run) and ISO 230-4:2005 circular tests (circular deviation, radial deviation, circular
+//! hysteresis about the orthogonal least-squares circle).
+//!
+//! Pure: takes numbers, returns numbers or [`Error`]; no HTTP, SQL, tokio or files.
+
+pub mod circle;
+pub mod error;
+pub mod iso230_2;
+pub mod iso230_4;
+pub mod trace;
+
+pub use circle::{Circle, fit_circle, fit_circle_kasa};
+pub use error::Error;
+pub use iso230_2::{Axis230_2, PositionTable, Target230_2, evaluate_table};
+pub use iso230_4::{Circular230_4, Hysteresis, circular_hysteresis, evaluate_circle};
+pub use trace::{
+    Dwell, PositioningTrace, TraceEvaluation, TraceOptions, TraceReading, evaluate_trace,
+    find_dwells,
+};
