@@ -3,6 +3,17 @@
 coarse-to-fine decomposition on the same signals, in the same run, and prints the ratios.
 
 Usage (from the crate root):  python3 bench/peers_decompose.py [--sizes 2025 20000 250000]
+                              python3 bench/peers_decompose.py --peer lean --peer-path FILE
+                                  [--rounds 5] [--sizes 2025 20000]
+
+`--peer vmdpy` (default): the peer pipeline below (vmdpy, two-iterate transcription above
+20,000 samples), timed after our bench.
+`--peer lean`: the memory-lean NumPy peer of the seed-002 reference study (`peer_pipeline.py`,
+its `method_c2f` with `vmd_impl="lean"`: vmdpy's arithmetic keeping two iterates). It is not
+part of this crate: give its path with `--peer-path FILE` or `TRUECUT_PEER_PIPELINE=FILE`
+(in the project's shared folder: reference/decomposition/peer_pipeline.py). The peer and
+our bench (in process and over HTTP) then run interleaved, `--rounds` times, and each side's
+best time is compared (the machine is shared; the minimum is the least disturbed run).
 
 The signals are the paper's eq. 23 continued with step 0.01 (t = 1 + 0.01 k) plus
 N(0, 0.005 mm) noise (numpy default_rng(0)); they are written to a temporary folder that
@@ -94,36 +105,121 @@ def peer_c2f(x):
     return x2 + x3
 
 
+def arg(name, default=None):
+    if name in sys.argv:
+        return sys.argv[sys.argv.index(name) + 1]
+    return default
+
+
+def int_list(name):
+    if name not in sys.argv:
+        return None
+    out = []
+    for a in sys.argv[sys.argv.index(name) + 1 :]:
+        if not a.isdigit():
+            break
+        out.append(int(a))
+    return out
+
+
+def write_signals(tmp, sizes):
+    signals, truths = {}, {}
+    for n in sizes:
+        t = 1 + 0.01 * np.arange(n)
+        s = 0.04 * (np.sin(1.6 * np.pi * t) + np.cos(0.05 * np.pi * t) + 4 * np.exp(-3 * t))
+        x = s + np.random.default_rng(0).normal(0, 0.005, n)
+        signals[n] = x
+        truths[n] = s
+        with open(os.path.join(tmp, f"signal_{n}.json"), "w") as fh:
+            json.dump(x.tolist(), fh)
+    return signals, truths
+
+
+def run_ours(crate, tmp, sizes):
+    out = subprocess.run(
+        ["cargo", "bench", "--bench", "decompose", "--", "--signals", tmp, "--sizes", *map(str, sizes)],
+        cwd=crate, check=True, capture_output=True, text=True,
+    ).stdout
+    return {d["n"]: d for d in (json.loads(line) for line in out.splitlines() if line.startswith("{"))}
+
+
+def load_lean_peer():
+    path = arg("--peer-path", os.environ.get("TRUECUT_PEER_PIPELINE"))
+    if not path or not os.path.isfile(path):
+        sys.exit(
+            "--peer lean needs the peer's file, which is not part of this crate: pass "
+            "--peer-path FILE or set TRUECUT_PEER_PIPELINE=FILE (the seed-002 reference "
+            "peer_pipeline.py, in the shared folder at reference/decomposition/peer_pipeline.py)"
+            + (f"; not found: {path}" if path else "")
+        )
+    spec = importlib.util.spec_from_file_location("peer_pipeline", path)
+    mod = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(mod)
+    params = dict(mod.DEFAULTS, vmd_impl="lean")
+    return path, lambda x: mod.method_c2f(x, params)
+
+
+def main_lean():
+    path, peer = load_lean_peer()
+    sizes = int_list("--sizes") or [2025, 20000]
+    rounds = int(arg("--rounds", "5"))
+    crate = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
+    print(f"peer: {path} (method_c2f, vmd_impl lean); {rounds} interleaved rounds, best of each side")
+    print(f"load average at start: {os.getloadavg()}")
+    with tempfile.TemporaryDirectory() as tmp:
+        signals, truths = write_signals(tmp, sizes)
+        best_peer = {n: float("inf") for n in sizes}
+        info = {}
+        ours = {}
+        for r in range(rounds):
+            o = run_ours(crate, tmp, sizes)
+            for n, d in o.items():
+                if n not in ours:
+                    ours[n] = dict(d)
+                    continue
+                for key in ("coarse_to_fine_s", "stages_1_4_s", "vmd_s", "http_s"):
+                    ours[n][key] = min(ours[n][key], d[key])
+                for key, v in d["profile_ms"].items():
+                    ours[n]["profile_ms"][key] = min(ours[n]["profile_ms"][key], v)
+            for n in sizes:
+                t0 = time.perf_counter()
+                est, inf = peer(signals[n])
+                best_peer[n] = min(best_peer[n], time.perf_counter() - t0)
+                e = np.abs(est - truths[n])
+                info[n] = (inf["vmd_info"]["iterations"], np.corrcoef(est, truths[n])[0, 1], e.max(), e.mean())
+            print(f"  round {r + 1}/{rounds} done, load average {os.getloadavg()[0]:.1f}", flush=True)
+        print(f"load average at end: {os.getloadavg()}")
+        print()
+        print("| n | lean peer C2F (s) | VMD iterations peer / ours | truecut in process (s) | ratio (goal >= 100x) "
+              "| truecut HTTP (s) | ratio (goal >= 30x) |")
+        print("|---|---|---|---|---|---|---|")
+        for n in sizes:
+            o, p = ours[n], best_peer[n]
+            print(f"| {n:,} | {p:.4f} | {info[n][0]} / {o['vmd_iterations']} | {o['coarse_to_fine_s']:.5f} "
+                  f"| {p / o['coarse_to_fine_s']:.1f}x | {o['http_s']:.5f} | {p / o['http_s']:.1f}x |")
+        print()
+        print("Where our time goes (ms, each stage alone, best of the rounds):")
+        for n in sizes:
+            print(f"  {n:,}: " + ", ".join(f"{k} {v:.2f}" for k, v in ours[n]["profile_ms"].items()))
+        print()
+        print("Accuracy against the true systematic error (r / max abs / mean abs, mm):")
+        print("| n | lean peer C2F | truecut C2F default |")
+        print("|---|---|---|")
+        for n in sizes:
+            a = ours[n]["default_r_max_mean"]
+            _, r, mx, mn = info[n]
+            print(f"| {n:,} | {r:.6f} / {mx:.6f} / {mn:.6f} | {a[0]:.6f} / {a[1]:.6f} / {a[2]:.6f} |")
+
+
 def main():
-    sizes = [2025, 20000, 250000]
-    if "--sizes" in sys.argv:
-        sizes = [int(s) for s in sys.argv[sys.argv.index("--sizes") + 1 :]]
+    if arg("--peer", "vmdpy") == "lean":
+        return main_lean()
+    sizes = int_list("--sizes") or [2025, 20000, 250000]
     here = os.path.dirname(os.path.abspath(__file__))
     crate = os.path.dirname(here)
     with tempfile.TemporaryDirectory() as tmp:
-        signals, truths = {}, {}
-        for n in sizes:
-            t = 1 + 0.01 * np.arange(n)
-            s = 0.04 * (np.sin(1.6 * np.pi * t) + np.cos(0.05 * np.pi * t) + 4 * np.exp(-3 * t))
-            x = s + np.random.default_rng(0).normal(0, 0.005, n)
-            signals[n] = x
-            truths[n] = s
-            with open(os.path.join(tmp, f"signal_{n}.json"), "w") as fh:
-                json.dump(x.tolist(), fh)
-        for n in (2025, 20000, 250000):
-            if n not in signals:  # the bench reads all three sizes
-                x = np.zeros(n) + np.random.default_rng(0).normal(0, 0.005, n)
-                with open(os.path.join(tmp, f"signal_{n}.json"), "w") as fh:
-                    json.dump(x.tolist(), fh)
-        out = subprocess.run(
-            ["cargo", "bench", "--bench", "decompose", "--", "--signals", tmp],
-            cwd=crate, check=True, capture_output=True, text=True,
-        ).stdout
-        ours = {}
-        for line in out.splitlines():
-            if line.startswith("{"):
-                d = json.loads(line)
-                ours[d["n"]] = d
+        signals, truths = write_signals(tmp, sizes)
+        ours = run_ours(crate, tmp, sizes)
         print("| n | peers C2F (s) | truecut C2F default (s) | ratio | truecut stages 1-4 (s) | ratio |")
         print("|---|---|---|---|---|---|")
         acc = []

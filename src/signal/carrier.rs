@@ -20,7 +20,6 @@ use crate::numeric::brent::minimize as brent_minimize;
 use crate::numeric::bspline::uniform_cubic;
 use crate::numeric::penalty::difference_penalty;
 use nalgebra::{DMatrix, DVector};
-use realfft::RealFftPlanner;
 
 /// Most envelope basis functions per quadrature (keeps the 2m × 2m eigenproblem small).
 pub const MAX_BASIS: usize = 120;
@@ -262,8 +261,7 @@ pub fn strongest_line(r: &[f64]) -> Option<(f64, f64)> {
         return None;
     }
     let len = 4 * n;
-    let mut planner = RealFftPlanner::<f64>::new();
-    let fft = planner.plan_fft_forward(len);
+    let fft = super::fft::forward(len);
     let mut buf = vec![0.0; len];
     for (t, (b, &v)) in buf.iter_mut().zip(r).enumerate() {
         *b = v * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * t as f64 / n as f64).cos());

@@ -229,22 +229,38 @@ pub fn coarse_to_fine(
     let v = vmd(x, &vp)?;
     let (vmd_corr, vmd_strong) = screen(&v.modes, x, params.threshold);
     let x1 = sum_selected(&v.modes, &vmd_strong, n);
-    // Stage 2: EMD of X1, screened against the measured error.
-    let e = emd(&x1, &params.emd)?;
-    let mut comps = e.imfs.clone();
-    comps.push(e.residue.clone());
-    let (emd_corr, emd_strong) = screen(&comps, x, params.threshold);
-    let x2 = sum_selected(&comps, &emd_strong, n);
-    // Stage 3: all weak components together, wavelet soft threshold.
-    let weak_v: Vec<bool> = vmd_strong.iter().map(|s| !s).collect();
-    let weak_e: Vec<bool> = emd_strong.iter().map(|s| !s).collect();
-    let mut w = sum_selected(&v.modes, &weak_v, n);
-    for (a, b) in w.iter_mut().zip(sum_selected(&comps, &weak_e, n)) {
-        *a += b;
-    }
+    // Stages 2-3 (EMD, wavelet) and stage 5 (refinement) both start from the VMD modes and
+    // neither needs the other: stages 2-3 run on a second thread while stage 5 runs here.
     let wav = Wavelet::new(&params.wavelet)?;
-    let level = params.wavelet_level.resolve(&w, &wav);
-    let den = denoise(&w, &wav, Some(level));
+    let stages_2_3 = || -> Result<_, Error> {
+        // Stage 2: EMD of X1, screened against the measured error.
+        let e = emd(&x1, &params.emd)?;
+        let mut comps = e.imfs;
+        comps.push(e.residue);
+        let (emd_corr, emd_strong) = screen(&comps, x, params.threshold);
+        let x2 = sum_selected(&comps, &emd_strong, n);
+        // Stage 3: all weak components together, wavelet soft threshold.
+        let weak_v: Vec<bool> = vmd_strong.iter().map(|s| !s).collect();
+        let weak_e: Vec<bool> = emd_strong.iter().map(|s| !s).collect();
+        let mut w = sum_selected(&v.modes, &weak_v, n);
+        for (a, b) in w.iter_mut().zip(sum_selected(&comps, &weak_e, n)) {
+            *a += b;
+        }
+        let level = params.wavelet_level.resolve(&w, &wav);
+        let den = denoise(&w, &wav, Some(level));
+        Ok((emd_corr, emd_strong, x2, den))
+    };
+    let lambda = params.lambda;
+    let smooth = move |r: &[f64]| whittaker(r, d, lambda);
+    let stage_5 = || {
+        params
+            .refine
+            .then(|| narrow_band_part(x, &v.modes, &vmd_strong, Some(d), &smooth))
+            .transpose()
+    };
+    let (early, refined) = parallel::join(stages_2_3, stage_5);
+    let (emd_corr, emd_strong, x2, den) = early.expect("EMD/wavelet thread panicked")?;
+    let refined = refined?;
     let x3 = den.signal;
     let x4: Vec<f64> = x2.iter().zip(&x3).map(|(a, b)| a + b).collect();
 
@@ -261,10 +277,7 @@ pub fn coarse_to_fine(
         wavelet_lambda: den.lambda,
         ..Default::default()
     };
-    if params.refine {
-        let lambda = params.lambda;
-        let smooth = move |r: &[f64]| whittaker(r, d, lambda);
-        let (h, bands, s) = narrow_band_part(x, &v.modes, &out.vmd_strong, Some(d), &smooth)?;
+    if let Some((h, bands, s)) = refined {
         out.systematic = s.signal.iter().zip(&h).map(|(a, b)| a + b).collect();
         out.refine = Some(s);
         out.narrow_band_modes = bands.iter().map(|b| b.mode).collect();

@@ -6,6 +6,7 @@ pub mod coarse_to_fine;
 pub mod decompose;
 pub mod emd;
 pub mod error;
+mod fft;
 pub mod field2d;
 pub mod flyers;
 pub mod screen;

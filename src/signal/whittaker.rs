@@ -5,7 +5,6 @@
 use super::error::{Error, check_signal};
 use crate::numeric::brent::minimize_on_grid;
 use crate::numeric::penalty::{difference_stencil, reflective_eigenvalues};
-use realfft::RealFftPlanner;
 use rustfft::num_complex::Complex;
 use serde::Serialize;
 
@@ -29,8 +28,7 @@ const MAX_CONDITION: f64 = 1e13;
 /// Squared orthonormal DCT-II coefficients of `x` (O(n log n) via a 2n real FFT).
 pub(crate) fn dct_power(x: &[f64]) -> Vec<f64> {
     let n = x.len();
-    let mut planner = RealFftPlanner::<f64>::new();
-    let fft = planner.plan_fft_forward(2 * n);
+    let fft = super::fft::forward(2 * n);
     let mut buf: Vec<f64> = x.iter().chain(x.iter().rev()).copied().collect();
     let mut spec = fft.make_output_vec();
     fft.process(&mut buf, &mut spec)

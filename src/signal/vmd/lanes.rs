@@ -5,8 +5,9 @@
 //! Written here (no crate): `std::simd` is unstable, and the portable SIMD crates (wide,
 //! pulp) would add a dependency for ten one-instruction wrappers. Each method is
 //! `#[inline(always)]`, so inside the `avx2,fma` sweep it compiles to the intrinsic itself;
-//! checked: the sweep's results are bit-identical to the two hand-written kernels it
-//! replaced, at the same speed.
+//! checked: the sweep's results were bit-identical to the two hand-written kernels it
+//! replaced, at the same speed. Since then the f32 lanes take 1/a from the hardware
+//! estimate plus a Newton step ([`Lanes::recip`]) instead of a division.
 
 use super::sweep::Real;
 use std::arch::x86_64::*;
@@ -38,18 +39,21 @@ pub(super) trait Lanes: Real + std::ops::Add<Output = Self> {
     unsafe fn sub(a: Self::V, b: Self::V) -> Self::V;
     /// a · b.
     unsafe fn mul(a: Self::V, b: Self::V) -> Self::V;
-    /// a / b.
-    unsafe fn div(a: Self::V, b: Self::V) -> Self::V;
     /// a · b + c with one rounding.
     unsafe fn fmadd(a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     /// Σ of the lanes in f64, lane 0 first.
     unsafe fn hsum(v: Self::V) -> f64;
+    /// 1 / a for a ≥ 1 (the sweep's Wiener denominators): the division in f64; in f32 the
+    /// 12-bit hardware estimate r₀ = rcp(a) and one Newton step r₀(2 − a·r₀), relative error
+    /// ≤ 2⁻²² (Intel SDM: |rcp error| ≤ 1.5·2⁻¹², squared by the step), a quarter of the
+    /// division's issue cost.
+    unsafe fn recip(a: Self::V) -> Self::V;
 }
 
 /// Implements [`Lanes`] for one lane type from its intrinsics.
 macro_rules! lanes {
     ($t:ty, $v:ty, $width:literal, $set1:ident, $setzero:ident, $loadu:ident, $storeu:ident,
-     $add:ident, $sub:ident, $mul:ident, $div:ident, $fmadd:ident) => {
+     $add:ident, $sub:ident, $mul:ident, $fmadd:ident, $recip:expr) => {
         impl Lanes for $t {
             type V = $v;
             const WIDTH: usize = $width;
@@ -89,14 +93,14 @@ macro_rules! lanes {
                 unsafe { $mul(a, b) }
             }
             #[inline(always)]
-            unsafe fn div(a: $v, b: $v) -> $v {
-                // SAFETY: the caller guarantees AVX (part of AVX2).
-                unsafe { $div(a, b) }
-            }
-            #[inline(always)]
             unsafe fn fmadd(a: $v, b: $v, c: $v) -> $v {
                 // SAFETY: the caller guarantees FMA.
                 unsafe { $fmadd(a, b, c) }
+            }
+            #[inline(always)]
+            unsafe fn recip(a: $v) -> $v {
+                // SAFETY: the caller guarantees AVX and FMA.
+                unsafe { $recip(a) }
             }
             #[inline(always)]
             unsafe fn hsum(v: $v) -> f64 {
@@ -120,8 +124,8 @@ lanes!(
     _mm256_add_pd,
     _mm256_sub_pd,
     _mm256_mul_pd,
-    _mm256_div_pd,
-    _mm256_fmadd_pd
+    _mm256_fmadd_pd,
+    recip_f64
 );
 
 lanes!(
@@ -135,6 +139,29 @@ lanes!(
     _mm256_add_ps,
     _mm256_sub_ps,
     _mm256_mul_ps,
-    _mm256_div_ps,
-    _mm256_fmadd_ps
+    _mm256_fmadd_ps,
+    recip_f32
 );
+
+/// 1 / a by division (f64 lanes: no fast estimate in AVX2).
+///
+/// Safety: the CPU supports AVX.
+#[inline(always)]
+unsafe fn recip_f64(a: __m256d) -> __m256d {
+    // SAFETY: the caller guarantees AVX.
+    unsafe { _mm256_div_pd(_mm256_set1_pd(1.0), a) }
+}
+
+/// 1 / a by the hardware estimate and one Newton step (see [`Lanes::recip`]).
+///
+/// Safety: the CPU supports AVX and FMA.
+#[inline(always)]
+unsafe fn recip_f32(a: __m256) -> __m256 {
+    // SAFETY: the caller guarantees AVX and FMA.
+    unsafe {
+        let r = _mm256_rcp_ps(a);
+        // r (2 − a r) = r + r (1 − a r), with 1 − a r in one rounding.
+        let e = _mm256_fnmadd_ps(a, r, _mm256_set1_ps(1.0));
+        _mm256_fmadd_ps(r, e, r)
+    }
+}

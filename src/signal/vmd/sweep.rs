@@ -208,9 +208,10 @@ fn sweep_avx2<C: Lanes>(
     while start < m {
         let len = BLOCK.min(m - start);
         let end = start + len;
-        // Running total Σ_k c_k of the block, in C (f64 for f64 storage, as block_total).
-        tot[..len].fill(C::default());
-        for ck in c.iter() {
+        // Running total Σ_k c_k of the block, in C (f64 for f64 storage, as block_total);
+        // started from c_0 (0 + c_0 = c_0 exactly) instead of zero-filled and added to.
+        tot[..len].copy_from_slice(&c[0][start..end]);
+        for ck in c.iter().skip(1) {
             for (t, &v) in tot[..len].iter_mut().zip(&ck[start..end]) {
                 *t = *t + v;
             }
@@ -237,7 +238,7 @@ fn sweep_avx2<C: Lanes>(
                 while i < full {
                     let vnu = C::load(nu.add(i));
                     let d = C::sub(vnu, vom);
-                    let w = C::div(one, C::fmadd(C::mul(va, d), d, one));
+                    let w = C::recip(C::fmadd(C::mul(va, d), d, one));
                     let vc = C::load(ck.add(i));
                     let o = C::sub(C::load(tp.add(i)), vc);
                     let nc = C::mul(C::sub(C::load(gp.add(i)), o), w);
