@@ -10,6 +10,7 @@ mod helpers;
 
 mod compensated;
 mod contour;
+mod dashboard;
 mod decomposition;
 mod gap;
 mod jobs_cancel;
