@@ -59,8 +59,8 @@
           { x, lo: d.targets.map((t) => U(t.mean_bwd - 2 * t.s_bwd)), hi: d.targets.map((t) => U(t.mean_bwd + 2 * t.s_bwd)), colour: "#c0392b", label: "↓ mean ± 2s" },
         ],
         series: [
-          { x, y: d.targets.map((t) => U(t.mean_fwd)), label: "↑ mean (positive approach)", colour: "#1f5f99", width: 2 },
-          { x, y: d.targets.map((t) => U(t.mean_bwd)), label: "↓ mean (negative approach)", colour: "#c0392b", width: 2 },
+          { x, y: d.targets.map((t) => U(t.mean_fwd)), label: "↑ mean (+ approach)", colour: "#1f5f99", width: 2 },
+          { x, y: d.targets.map((t) => U(t.mean_bwd)), label: "↓ mean (− approach)", colour: "#c0392b", width: 2 },
           { x: fwdDots.map((p) => p[0]), y: fwdDots.map((p) => p[1]), colour: "#1f5f99", dotsOnly: true },
           { x: bwdDots.map((p) => p[0]), y: bwdDots.map((p) => p[1]), colour: "#c0392b", dotsOnly: true },
         ],
@@ -112,17 +112,19 @@
       const angles = points.map((p) => Math.atan2(p[1] - cy, p[0] - cx));
       const dev = points.map((p) => (Math.hypot(p[0] - cx, p[1] - cy) - d.radius_fit) * 1000);
       const top = Math.max(...dev.map(Math.abs));
-      const ticks = Plot.niceTicks(0, top, 2);
-      const ring = ticks.find((t) => t >= top) || ticks[ticks.length - 1] || 1;
+      // The dashed rings sit at ± a round value at least the largest deviation.
+      const step = Plot.niceTicks(0, top || 1, 2).step;
+      const ring = step * Math.max(1, Math.ceil(top / step - 1e-9));
       const plots = h("div", { class: "plots" });
       out.append(plots);
       Plot.polar(plots, {
         title: "Radial deviation about the least-squares circle (magnified)",
-        ringUm: ring,
+        ringUm: ring, ringStep: step,
         series: [{ angles, dev, colour: "#1f5f99", label: "measured path" }],
-        notes: [`dashed rings: ±${Plot.fmt(ring)} µm`, `G = ${(d.G * 1000).toFixed(2)} µm`, `radius ${d.radius_fit.toFixed(3)} mm`],
+        notes: [`dashed rings: ±${Plot.fmt(ring, step)} µm`, `G = ${(d.G * 1000).toFixed(2)} µm`, `radius ${d.radius_fit.toFixed(3)} mm`],
       });
       Plot.lines(plots, { title: "Radial deviation against angle", xlabel: "angle (°)", ylabel: "radial deviation (µm)", hline: 0,
+        xr: [0, 360], xticks: Object.assign([0, 45, 90, 135, 180, 225, 270, 315, 360], { step: 1 }),
         series: [{ x: angles.map((a) => ((a * 180 / Math.PI) + 360) % 360), y: dev, colour: "#1f5f99", dotsOnly: true }] });
       const extra = Object.keys(d).filter((k) => !["G", "F_max", "F_min", "centre", "radius_fit"].includes(k));
       if (extra.length) out.append(h("h3", {}, "Further figures"), table(["name", "value"], extra.map((k) => [k, JSON.stringify(d[k]).slice(0, 200)])));

@@ -95,7 +95,7 @@
       if (byProgram) {
         const sim = demoCache && cmd.value === MAIN ? demoCache.main : await api("POST", `/v1/machines/${enc(m)}/contour-error`, { gcode: cmd.value, period_s });
         const axes = d.axes || ["X", "Y", "Z"];
-        Plot.lines(plots, { title: "Gap over time, measured − simulated, per axis; shaded: where it arises", xlabel: "time (s)", ylabel: "gap (µm)", spans, hline: 0,
+        Plot.lines(plots, { title: "Gap over time per axis; shaded: spans where it arises", xlabel: "time (s)", ylabel: "gap measured − simulated (µm)", spans, hline: 0,
           series: axes.slice(0, measured[0].length).map((a, k) => ({ x: t, y: measured.map((p, i) => (p[k] - sim.actual[Math.min(i, sim.actual.length - 1)][k]) * 1000), label: a, colour: ["#1f5f99", "#c0392b", "#2e8b57"][k], width: 1 })) });
       } else {
         Plot.lines(plots, { title: "Commanded positions; shaded: where the gap arises", xlabel: "time (s)", ylabel: "position (mm)", spans,

@@ -184,7 +184,7 @@ const Plot = (() => {
     const pad = (yr[1] - yr[0]) * 0.05;
     const legendW = series.some((s) => s.label) || bands.some((b) => b.label) ? 150 : 0;
     const box = [70, 34, W - 16 - legendW, H - 46];
-    const s = axes(svg, box, xr, [yr[0] - pad, yr[1] + pad], opts.xlabel, opts.ylabel);
+    const s = axes(svg, box, xr, [yr[0] - pad, yr[1] + pad], opts.xlabel, opts.ylabel, { xticks: opts.xticks });
     const clip = `clip${Math.random().toString(36).slice(2)}`;
     const cp = el("clipPath", { id: clip }, svg);
     el("rect", { x: box[0], y: box[1], width: box[2] - box[0], height: box[3] - box[1] }, cp);
@@ -276,6 +276,11 @@ const Plot = (() => {
       for (let k = i; k <= j; k++) v = Math.max(v, opts.values[k]);
       el("line", { x1: s.x(opts.x[i]), y1: s.y(opts.y[i]), x2: s.x(opts.x[j]), y2: s.y(opts.y[j]), stroke: sequential(v, 0, hi), "stroke-width": 3, "stroke-linecap": "round" }, g);
     }
+    for (const m of opts.marks || []) {
+      el("circle", { cx: s.x(m.x), cy: s.y(m.y), r: 6, class: "worst-mark" }, svg);
+      const left = s.x(m.x) > (box[0] + box[2]) / 2; // keep the label inside the plot
+      text(svg, s.x(m.x) + (left ? -8 : 8), s.y(m.y) + (s.y(m.y) < box[1] + 20 ? 18 : -6), m.label, { class: "region-label", "text-anchor": left ? "end" : "start" });
+    }
     colourBar(svg, W - 82, box[1] + 16, box[3], 0, hi, (v) => sequential(v, 0, hi), opts.unit);
     return svg;
   }
@@ -286,7 +291,7 @@ const Plot = (() => {
    */
   function polar(parent, opts) {
     const svg = frame(parent, opts.title, "polar");
-    const cx = 220, cy = H / 2 + 10, R0 = 110, ring = opts.ringUm; // R0: the reference circle
+    const cx = 220, cy = H / 2 + 14, R0 = 100, ring = opts.ringUm; // R0: the reference circle
     const k = 50 / ring; // ring µm of deviation = 50 px
     const g = el("g", { class: "axes" }, svg);
     for (const d of [-ring, 0, ring]) {
@@ -294,11 +299,11 @@ const Plot = (() => {
     }
     for (let a = 0; a < 360; a += 45) {
       const r = a * Math.PI / 180;
-      el("line", { x1: cx, y1: cy, x2: cx + (R0 + 60) * Math.cos(r), y2: cy - (R0 + 60) * Math.sin(r), class: "grid" }, g);
-      text(g, cx + (R0 + 72) * Math.cos(r), cy - (R0 + 72) * Math.sin(r) + 4, `${a}°`, { "text-anchor": "middle", class: "tick-label" });
+      el("line", { x1: cx, y1: cy, x2: cx + (R0 + 55) * Math.cos(r), y2: cy - (R0 + 55) * Math.sin(r), class: "grid" }, g);
+      text(g, cx + (R0 + 66) * Math.cos(r), cy - (R0 + 66) * Math.sin(r) + 4, `${a}°`, { "text-anchor": "middle", class: "tick-label" });
     }
-    text(g, cx + R0 + ring * k + 2, cy - 4, `+${fmt(ring)} µm`, { class: "tick-label" });
-    text(g, cx + R0 - ring * k + 2, cy + 14, `−${fmt(ring)} µm`, { class: "tick-label" });
+    text(g, cx + R0 + ring * k - 2, cy - 5, `+${fmt(ring, opts.ringStep)}`, { "text-anchor": "end", class: "tick-label" });
+    text(g, cx + R0 - ring * k + 2, cy - 5, `−${fmt(ring, opts.ringStep)}`, { class: "tick-label" });
     let ly = 60;
     for (const sr of opts.series) {
       let d = "";

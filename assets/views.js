@@ -168,18 +168,19 @@
       for (const w of d.warnings || []) out.append(h("p", { class: "note" }, `reader: ${w}`));
       const plots = h("div", { class: "plots" });
       out.append(plots);
-      Plot.colouredPath(plots, {
-        title: "Tool path coloured by contour error (mm); dashed: commanded",
-        x: d.actual.map((p) => p[0]), y: d.actual.map((p) => p[1]), values: d.contour_error, unit: "mm",
-        refX: d.commanded.map((p) => p[0]), refY: d.commanded.map((p) => p[1]), xlabel: "X (mm)", ylabel: "Y (mm)",
-      });
-      Plot.lines(plots, { title: "Contour error over time", xlabel: "time (s)", ylabel: "contour error (mm)", series: [{ x: d.t, y: d.contour_error, colour: COLOURS[0] }] });
       // Worst blocks: the largest contour error while each program line executes.
       const worst = new Map();
-      (d.line || []).forEach((ln, i) => { const e = d.contour_error[i]; const w = worst.get(ln); if (!w || e > w.e) worst.set(ln, { e, t: d.t[i] }); });
+      (d.line || []).forEach((ln, i) => { const e = d.contour_error[i]; const w = worst.get(ln); if (!w || e > w.e) worst.set(ln, { e, t: d.t[i], i }); });
       const rows = [...worst.entries()].sort((a, b) => b[1].e - a[1].e).slice(0, 8);
-      out.append(h("h3", {}, "Worst blocks"), table(["program line", "block", "max contour error", "at time"], rows.map(([ln, w]) => [
-        ln, h("code", {}, (lines[ln - 1] || "").trim()), mm(w.e), `${w.t.toFixed(3)} s`])));
+      Plot.colouredPath(plots, {
+        title: "Tool path coloured by contour error; circled: the 3 worst blocks",
+        x: d.actual.map((p) => p[0]), y: d.actual.map((p) => p[1]), values: d.contour_error, unit: "mm",
+        refX: d.commanded.map((p) => p[0]), refY: d.commanded.map((p) => p[1]), xlabel: "X (mm)", ylabel: "Y (mm)",
+        marks: rows.slice(0, 3).map(([ln, w], k) => ({ x: d.actual[w.i][0], y: d.actual[w.i][1], label: `${k + 1}: line ${ln}` })),
+      });
+      Plot.lines(plots, { title: "Contour error over time", xlabel: "time (s)", ylabel: "contour error (mm)", series: [{ x: d.t, y: d.contour_error, colour: COLOURS[0] }] });
+      out.append(h("h3", {}, "Worst blocks"), table(["#", "program line", "block", "max contour error", "at time"], rows.map(([ln, w], k) => [
+        k + 1, ln, h("code", {}, (lines[ln - 1] || "").trim()), mm(w.e), `${w.t.toFixed(3)} s`])));
     });
   });
 
