@@ -38,6 +38,7 @@ VIEWS = [
     ("volumetric", "#/m/demo-vmc/volumetric", 6, 0),
     ("iso230-2", "#/iso230-2", 2, 1),
     ("iso230-4", "#/iso230-4", 2, 0),
+    ("api", "#/api", 0, 1),
 ]
 
 # What each plot has drawn: data marks outside the axes and the colour bar, their joint

@@ -221,3 +221,28 @@
     if ((comp.notes || []).length) main.append(h("h3", {}, "Notes"), h("ul", {}, ...comp.notes.map((n) => h("li", {}, n))));
   });
 })();
+
+// ── the API reference: every route of openapi.yaml with its summary ─────────────────────
+(() => {
+  const { h, table, view } = App;
+  view(/^\/api$/, async (main) => {
+    const r = await fetch("/openapi.yaml");
+    if (!r.ok) throw new App.Problem(r.status, await r.text());
+    const text = await r.text();
+    // The spec's layout: paths at two spaces, methods at four, their summary at six.
+    const rows = [];
+    let path = null, method = null, inPaths = false;
+    for (const line of text.split("\n")) {
+      if (/^\S/.test(line)) inPaths = line.startsWith("paths:");
+      if (!inPaths) continue;
+      let m;
+      if ((m = line.match(/^  (\/\S*):\s*$/))) { path = m[1]; method = null; }
+      else if ((m = line.match(/^    (get|put|post|delete|patch):\s*$/))) { method = m[1].toUpperCase(); rows.push([method, path, ""]); }
+      else if (method && (m = line.match(/^      summary:\s*(.*)$/))) rows[rows.length - 1][2] = m[1].replace(/^'(.*)'$/, "$1");
+    }
+    main.append(h("h2", {}, "API reference"),
+      h("p", { class: "note" }, "Every route this server answers, from its openapi.yaml (request and answer schemas are in the file itself). Send Authorization: Bearer TOKEN when tokens are configured."),
+      h("p", {}, h("a", { href: "/openapi.yaml" }, "openapi.yaml (raw)")),
+      table(["method", "path", "what it does"], rows.map(([me, p, s]) => [me, h("code", {}, p), s])));
+  });
+})();
