@@ -135,7 +135,8 @@ async fn with_tokens_the_page_needs_read_and_a_browser_may_log_in_with_basic() {
 
     // A Basic-authenticated POST must carry the dashboard's header (cross-site requests
     // cannot add it); with it, read may compute; a Bearer POST needs no such header.
-    let body = json!({"signal": [1.0, 2.0, 3.0, 2.0, 1.0, 2.0, 3.0, 2.0, 1.0, 2.0, 3.0, 2.0], "method": "wavelet"});
+    let signal: Vec<f64> = (0..256).map(|i| (i as f64 * 0.2).sin()).collect();
+    let body = json!({"signal": signal});
     let post = |with_header: bool| {
         let rb = app
             .client
