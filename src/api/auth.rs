@@ -1,7 +1,9 @@
 //! Bearer-token authentication (a global middleware) and role extractors.
 //!
-//! Every `/v1` request is authenticated; the resulting [`Role`] is stored in the request's
-//! extensions. GETs and computing POSTs need only `read`; handlers that store data take
+//! Every `/v1` request is authenticated, and so are the dashboard's `/` and `/assets/`; the
+//! resulting [`Role`] is stored in the request's extensions. A token comes as
+//! `Authorization: Bearer TOKEN`, or as the password of `Basic` credentials (what a browser
+//! sends after its log-in prompt for the dashboard). GETs and computing POSTs need only `read`; handlers that store data take
 //! [`RequireWrite`] or [`RequireAdmin`]. As a safety net the middleware itself demands
 //! `admin` for DELETE and `write` for PUT/PATCH. With no tokens configured every request is
 //! `admin` (development mode; the server then binds loopback only).
@@ -115,36 +117,96 @@ impl Tokens {
     }
 }
 
-/// Global middleware: authenticates `/v1` requests, stores the [`Role`] in the extensions.
+/// Header the dashboard sends with its state-changing requests. A request authenticated by
+/// `Basic` credentials (which a browser attaches by itself) must carry it unless it is a
+/// GET or HEAD: a page of another origin cannot add it without a CORS preflight, which this
+/// server never grants, so it cannot ride on the operator's cached credentials.
+pub const DASHBOARD_HEADER: &str = "x-truecut-dashboard";
+
+/// True for the paths outside `/v1` that need a token too: the dashboard page and its assets.
+fn is_dashboard(path: &str) -> bool {
+    path == "/" || path.starts_with("/assets/")
+}
+
+/// The token presented: `Bearer TOKEN`, or `Basic` with the token as the password (any user
+/// name), which is what a browser sends after its log-in prompt. `Err` for a header that is
+/// neither.
+fn presented_token(value: &str) -> Result<(String, bool), &'static str> {
+    if let Some(t) = value
+        .strip_prefix("Bearer ")
+        .or_else(|| value.strip_prefix("bearer "))
+    {
+        return Ok((t.trim().to_string(), false));
+    }
+    if let Some(b) = value
+        .strip_prefix("Basic ")
+        .or_else(|| value.strip_prefix("basic "))
+    {
+        use base64::Engine as _;
+        let decoded = base64::engine::general_purpose::STANDARD
+            .decode(b.trim())
+            .map_err(|_| "the Basic credentials are not base64")?;
+        let text = String::from_utf8(decoded).map_err(|_| "the Basic credentials are not UTF-8")?;
+        let (_, password) = text
+            .split_once(':')
+            .ok_or("the Basic credentials are not USER:TOKEN")?;
+        return Ok((password.trim().to_string(), true));
+    }
+    Err("send a token: Authorization: Bearer TOKEN")
+}
+
+/// 401 for `path`: on the dashboard with a `Basic` challenge, so that a browser asks for the
+/// token; on `/v1` with the `Bearer` challenge of [`ApiError`].
+fn unauthorized(dashboard: bool, detail: &str) -> Response {
+    let mut resp = ApiError::unauthorized(detail).into_response();
+    if dashboard {
+        resp.headers_mut().insert(
+            header::WWW_AUTHENTICATE,
+            header::HeaderValue::from_static(
+                "Basic realm=\"truecut dashboard: any user name, your token as the password\", charset=\"UTF-8\"",
+            ),
+        );
+    }
+    resp
+}
+
+/// Global middleware: authenticates `/v1` requests and the dashboard (`/`, `/assets/`),
+/// stores the [`Role`] in the extensions.
 pub async fn authenticate(State(state): State<AppState>, mut req: Request, next: Next) -> Response {
-    if !req.uri().path().starts_with("/v1") {
+    let path = req.uri().path();
+    let dashboard = is_dashboard(path);
+    if !path.starts_with("/v1") && !dashboard {
         return next.run(req).await;
     }
     let role = if state.tokens.is_empty() {
         Role::Admin
     } else {
-        let presented = req
+        let Some(value) = req
             .headers()
             .get(header::AUTHORIZATION)
             .and_then(|v| v.to_str().ok())
-            .and_then(|v| {
-                v.strip_prefix("Bearer ")
-                    .or_else(|| v.strip_prefix("bearer "))
-            })
-            .map(str::trim);
-        match presented {
-            None => {
-                return ApiError::unauthorized("send a token: Authorization: Bearer TOKEN")
-                    .into_response();
-            }
-            Some(token) => match state.tokens.role_of(token) {
-                Some(role) => role,
-                None => {
-                    return ApiError::unauthorized("the bearer token is not known to this server")
-                        .into_response();
-                }
-            },
+        else {
+            return unauthorized(dashboard, "send a token: Authorization: Bearer TOKEN");
+        };
+        let (token, basic) = match presented_token(value) {
+            Ok(t) => t,
+            Err(detail) => return unauthorized(dashboard, detail),
+        };
+        let Some(role) = state.tokens.role_of(&token) else {
+            return unauthorized(dashboard, "the bearer token is not known to this server");
+        };
+        if basic
+            && !matches!(*req.method(), Method::GET | Method::HEAD)
+            && !req.headers().contains_key(DASHBOARD_HEADER)
+        {
+            return ApiError::forbidden(format!(
+                "a request authenticated by Basic credentials must carry the header \
+                 {DASHBOARD_HEADER} (the dashboard sends it); scripts should send \
+                 Authorization: Bearer TOKEN"
+            ))
+            .into_response();
         }
+        role
     };
     let needed = match *req.method() {
         // Cancelling a job is the submitter's business (write), not an administrator's.

@@ -9,6 +9,7 @@ pub mod auth;
 pub mod compensated;
 pub mod compensation;
 pub mod contour;
+pub mod dashboard;
 pub mod decomposition;
 pub mod error;
 pub mod extract;
@@ -66,6 +67,7 @@ pub fn router(state: AppState) -> Router {
     let max_body = state.max_body_bytes;
     Router::new()
         .merge(health::routes())
+        .merge(dashboard::routes())
         .merge(metrics::routes())
         .merge(jobs::routes())
         .merge(machines::routes())

@@ -14,7 +14,7 @@ pub fn run(config: Config) -> anyhow::Result<()> {
             let loaded = super::demo::load(&server.state().store).await?;
             if loaded {
                 tracing::info!(
-                    "demo loaded: machine 'demo', surface 'saddle', measurement 'demo-1'"
+                    "demo loaded: machine 'demo', surface 'saddle', measurements 'demo-1' and 'demo-2', machine 'demo-vmc' with a volumetric map; dashboard at /"
                 );
             }
         }

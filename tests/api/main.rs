@@ -12,6 +12,7 @@ mod cli_client;
 mod compensated;
 mod contour;
 mod crash;
+mod dashboard;
 mod decomposition;
 mod gap;
 mod instances;

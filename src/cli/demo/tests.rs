@@ -30,3 +30,22 @@ fn noise_is_bounded() {
         assert!((-1.0..1.0).contains(&v));
     }
 }
+
+#[test]
+fn demo_volumetric_map_has_the_iso_230_1_components() {
+    let map = demo_volumetric_map().unwrap();
+    let k = map
+        .components
+        .as_ref()
+        .expect("a kinematic map has its components");
+    let curves = crate::volumetric::component_curves(k, 11);
+    assert_eq!(curves.axes.len(), 3);
+    assert_eq!(curves.squareness.len(), 3);
+    // The positioning error of each axis along itself is identified and not flat.
+    for (axis, a) in curves.axes.iter().enumerate() {
+        let v = a.curves[axis].values.as_ref().expect("identified");
+        let range =
+            v.iter().cloned().fold(f64::MIN, f64::max) - v.iter().cloned().fold(f64::MAX, f64::min);
+        assert!(range > 1.0, "axis {axis}: {range} um");
+    }
+}
