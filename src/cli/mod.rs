@@ -7,6 +7,7 @@ pub mod demo;
 pub mod gap;
 pub mod serve;
 pub mod step;
+pub mod step_transfer;
 pub mod volumetric;
 
 use clap::{Parser, Subcommand};
@@ -34,7 +35,7 @@ pub enum Command {
     /// Fit a volumetric error map to measured nodes (CSV), export a compensation table.
     Volumetric(volumetric::Args),
     /// Step error of ball-end toolpaths (Zhang et al. 2023): `exact`, `samples`, `train`,
-    /// `predict`.
+    /// `predict`, `transfer`.
     Step(step::Args),
 }
 
