@@ -56,6 +56,10 @@ pub struct RowInfo {
     pub d_min_um: f64,
     /// Largest `d_j`, µm (profile inputs; 0 otherwise).
     pub d_max_um: f64,
+    /// Most the continuous curve can reach beyond the samples' extremes, µm: a quarter of the
+    /// largest second difference `|d_{j-1} - 2 d_j + d_{j+1}|` (a parabola misses at most an
+    /// eighth of it between samples; twice that for margin). Profile inputs; 0 otherwise.
+    pub miss_bound_um: f64,
 }
 
 /// Smallest profile scale `s`, µm: a segment whose m distances all lie within 1e-6 µm of R is
@@ -156,19 +160,22 @@ impl StepFeatures {
     }
 
     /// Step errors (µm) from network outputs (row-major, [`StepFeatures::n_outputs`] per
-    /// segment) and the rows' [`RowInfo`]. Profile inputs: `|s max(o_0, 0) - d_min|` when
-    /// convex, `|d_max + s max(o_1, 0)|` when concave (the continuous curve reaches at least
-    /// the samples' extremes, so a negative output is clipped to them).
+    /// segment) and the rows' [`RowInfo`]. Profile inputs: `|s c_0 - d_min|` when convex,
+    /// `|d_max + s c_1|` when concave, where `c_k` is the output clipped to
+    /// `[0, miss_bound / s]`: the continuous curve reaches at least the samples' extremes and at
+    /// most [`RowInfo::miss_bound_um`] beyond them, so a network asked about a shape it never
+    /// saw cannot answer outside what the geometry allows.
     pub fn combine(&self, outputs: &[f64], info: &[RowInfo]) -> Vec<f64> {
         match self.inputs {
             StepInputs::Profile => outputs
                 .chunks_exact(2)
                 .zip(info)
                 .map(|(o, i)| {
+                    let hi = i.miss_bound_um / i.scale_um;
                     if i.convex {
-                        (i.scale_um * o[0].max(0.0) - i.d_min_um).abs()
+                        (i.scale_um * o[0].clamp(0.0, hi) - i.d_min_um).abs()
                     } else {
-                        (i.d_max_um + i.scale_um * o[1].max(0.0)).abs()
+                        (i.d_max_um + i.scale_um * o[1].clamp(0.0, hi)).abs()
                     }
                 })
                 .collect(),
@@ -387,6 +394,10 @@ fn profile_row(
         (lo, hi, s) = (lo.min(v), hi.max(v), s.max(v.abs()));
         *o = v;
     }
+    let dd = out[..m]
+        .windows(3)
+        .map(|w| (w[0] - 2.0 * w[1] + w[2]).abs())
+        .fold(0.0, f64::max);
     for o in &mut out[..m] {
         *o /= s;
     }
@@ -397,6 +408,7 @@ fn profile_row(
         scale_um: s,
         d_min_um: lo,
         d_max_um: hi,
+        miss_bound_um: dd / 4.0,
     })
 }
 

@@ -102,7 +102,7 @@ fn the_profile_is_the_same_under_rigid_motion_and_scaling() {
     assert!((ia.scale_um - 14.06).abs() < 0.2, "{}", ia.scale_um);
     let (cl2, cc2) = arc_segment(20, 5.0, 2.1, [-120.0, 33.0, 57.0], 1.0);
     let (b, ib) = row(cl2, &cc2, 5.0, &mut sp);
-    let (cl3, cc3) = arc_segment(20, 10.0, 0.4, [5.0, 6.0, 7.0], 2.0);
+    let (cl3, cc3) = arc_segment(20, 5.0, 0.4, [5.0, 6.0, 7.0], 2.0);
     let (c, ic) = row(cl3, &cc3, 10.0, &mut sp);
     for (v, w) in [(&b, &ib), (&c, &ic)] {
         let diff = a
@@ -140,6 +140,8 @@ fn profile_targets_combine_back_to_the_exact_error() {
         let t = f.targets(&e, &info);
         // The continuous curve reaches at least the samples' extremes.
         assert!(t.iter().all(|v| *v >= -1e-9), "{t:?}");
+        // ... and no more than the bound the outputs are clipped to.
+        assert!(t[0] <= info.miss_bound_um / info.scale_um, "{t:?} {info:?}");
         let back = f.combine(&t, &[info])[0];
         assert!(
             (back - e.error_mm * 1e3).abs() < 1e-9,
