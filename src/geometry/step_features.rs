@@ -379,7 +379,7 @@ fn profile_row(
 ) -> Result<RowInfo> {
     let d = sub(cl[1], cl[0]);
     let len = crate::numeric::vec3::norm(d);
-    if !(len > 1e-12 * r) {
+    if len.is_nan() || len <= 1e-12 * r {
         return Err(Error::ZeroLengthStep);
     }
     let u = scale(d, 1.0 / len);
