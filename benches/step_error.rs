@@ -403,7 +403,7 @@ fn network() {
                             (pred[i] - yr[i]).abs(),
                             yr[i],
                             e.convex,
-                            c[rest[i]],
+                            c[rest[i]].convex,
                             e.inflection,
                             e.t
                         );
