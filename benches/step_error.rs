@@ -14,7 +14,7 @@ use std::process::Command;
 use std::time::Instant;
 
 use truecut::geometry::{
-    HeightSurface, PathPlan, StepError, StepErrorSegment, StepErrorSolver, StepFeatures,
+    HeightSurface, PathPlan, RowInfo, StepError, StepErrorSegment, StepErrorSolver, StepFeatures,
     height_surface_segments, step_errors,
 };
 use truecut::nn::{Activation, Init, Mlp, Regressor, TrainConfig, gather_rows, split_indices};
@@ -42,13 +42,17 @@ fn surface_data(id: u32) -> SurfaceData {
     SurfaceData { segs, exact, y }
 }
 
-fn features(f: &StepFeatures, segs: &[StepErrorSegment]) -> (Vec<f64>, Vec<bool>) {
+fn features(f: &StepFeatures, segs: &[StepErrorSegment]) -> (Vec<f64>, Vec<RowInfo>) {
     f.matrix(R, segs.iter().map(|s| (s.cl, &s.cc[..])))
         .expect("features")
 }
 
-fn targets(f: &StepFeatures, exact: &[StepError]) -> Vec<f64> {
-    exact.iter().flat_map(|e| f.targets(e)).collect()
+fn targets(f: &StepFeatures, exact: &[StepError], info: &[RowInfo]) -> Vec<f64> {
+    exact
+        .iter()
+        .zip(info)
+        .flat_map(|(e, i)| f.targets(e, i))
+        .collect()
 }
 
 fn pick<T: Clone>(v: &[T], idx: &[usize]) -> Vec<T> {
@@ -242,15 +246,23 @@ fn network() {
         println!("  labels: max {max:.2} um, mean {mean:.2} um");
     }
     let local = StepFeatures::local();
-    let mut variants: Vec<(&str, StepFeatures, Init, TrainConfig)> = vec![(
-        "DEFAULT local frame, two-sided outputs, He, Adam 1e-3 cosine, no dropout, early stop",
-        StepFeatures {
-            two_sided: true,
-            ..local
-        },
-        Init::He,
-        TrainConfig::default(),
-    )];
+    let mut variants: Vec<(&str, StepFeatures, Init, TrainConfig)> = vec![
+        (
+            "DEFAULT distance profile (model version 2), He, Adam 1e-3 cosine, no dropout, early stop",
+            StepFeatures::profile(),
+            Init::He,
+            TrainConfig::default(),
+        ),
+        (
+            "previous default: local frame coordinates, two-sided outputs",
+            StepFeatures {
+                two_sided: true,
+                ..local
+            },
+            Init::He,
+            TrainConfig::default(),
+        ),
+    ];
     if mode().contains("more") {
         variants.push((
             "local frame (study's inputs), one output",
@@ -297,7 +309,7 @@ fn network() {
         println!("-- {name}");
         let d1 = &data[0];
         let (x1, c1) = features(&f, &d1.segs);
-        let t1 = targets(&f, &d1.exact);
+        let t1 = targets(&f, &d1.exact, &c1);
         let (w, no) = (f.len(), f.n_outputs());
         let (train_idx, test_idx) = split_indices(d1.y.len(), 0.3, 0);
         // Early stopping watches 10 % of the training part; the 30 % test part is never seen.
@@ -340,7 +352,7 @@ fn network() {
         );
         for (si, d) in data.iter().enumerate().skip(1) {
             let (x, c) = features(&f, &d.segs);
-            let tg = targets(&f, &d.exact);
+            let tg = targets(&f, &d.exact, &c);
             let n = d.y.len();
             let mut row = format!("surface {}:", si + 1);
             for pct in [0.0, 1.0, 5.0, 10.0, 15.0] {
@@ -391,7 +403,7 @@ fn network() {
                             (pred[i] - yr[i]).abs(),
                             yr[i],
                             e.convex,
-                            c[rest[i]],
+                            c[rest[i]].convex,
                             e.inflection,
                             e.t
                         );

@@ -389,7 +389,8 @@ impl From<codec::DecodeError> for ApiError {
 }
 
 /// Labelling and training failures as their core's (geometry, nn); too few samples to split
-/// is 422; unreadable model metadata is the server's fault (500).
+/// is 422, and so is a stored model from a newer truecut (retrain it); unreadable model
+/// metadata is the server's fault (500).
 impl From<step_error::Error> for ApiError {
     fn from(e: step_error::Error) -> Self {
         use step_error::Error as E;
@@ -398,6 +399,7 @@ impl From<step_error::Error> for ApiError {
             E::Nn(e) => e.into(),
             E::TooFewToSplit => ApiError::unprocessable(e.to_string()),
             E::Metadata(_) => ApiError::internal(e),
+            E::NewerModel { .. } => ApiError::unprocessable(e.to_string()),
             E::Cancelled => ApiError::conflict(e.to_string()),
         }
     }

@@ -14,6 +14,7 @@ pub mod iso;
 pub mod jobs;
 pub mod serve;
 pub mod step;
+pub mod step_transfer;
 pub mod upload;
 pub mod volumetric;
 
@@ -53,7 +54,7 @@ pub enum Command {
     #[command(after_help = "Example:\n  truecut volumetric --synthetic 7,6,5 > grid.csv")]
     Volumetric(volumetric::Args),
     /// Step error of ball-end toolpaths (Zhang et al. 2023): `exact`, `samples`, `train`,
-    /// `predict`.
+    /// `predict`, `transfer`.
     #[command(after_help = "Example:\n  truecut step exact --help")]
     Step(step::Args),
     /// Upload a probe measurement (CSV or JSON) to a running service; prints the new id.

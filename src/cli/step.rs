@@ -10,7 +10,7 @@ use crate::geometry::{
     HeightSurface, PathPlan, StepErrorSegment, height_surface_segments, step_errors,
 };
 use crate::nn::{Init, Regressor, TrainConfig};
-use crate::step_error::{TrainJob, model_features};
+use crate::step_error::{TrainJob, model_features, predict_um};
 
 /// Step error of ball-end toolpaths: exact geometry, sample generation, the network.
 #[derive(Debug, clap::Args)]
@@ -74,6 +74,28 @@ pub enum StepCommand {
         /// Held-out fraction for the reported test errors.
         #[arg(long, default_value_t = 0.3)]
         test_fraction: f64,
+    },
+    /// The transfer study (issue 12): generated surfaces (ridges, ripples, steps, bumps,
+    /// saddles, waves, mixtures; heights 20-60 mm, turned, R 3-8 mm, m 11-31, varied steps),
+    /// a network trained on each of the first N, every other surface predicted zero-shot, the
+    /// worst surfaces fine-tuned on 15 %; prints per-surface figures and the worst beside the
+    /// goals.
+    Transfer {
+        /// Number of generated surfaces.
+        #[arg(long, default_value_t = 24)]
+        surfaces: usize,
+        /// Train a network on each of the first N surfaces.
+        #[arg(long, default_value_t = 24)]
+        train_on: usize,
+        /// Most segments taken of each surface.
+        #[arg(long, default_value_t = 6000)]
+        budget: usize,
+        /// Also run the previous default (local-frame coordinates, two outputs) for comparison.
+        #[arg(long)]
+        coordinates: bool,
+        /// Print the whole report as JSON at the end.
+        #[arg(long)]
+        json: bool,
     },
     /// Predict step errors (mm) of the segments in FILE with a model file.
     Predict {
@@ -208,15 +230,22 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )?;
             let (features, r_model) = model_features(&reg)?;
             let r = f.tool_radius.unwrap_or(r_model);
-            let (x, convex) = features.matrix(r, f.segments.iter().map(|s| (s.cl, &s.cc[..])))?;
-            let y = reg.predict_parallel(&x, 0)?;
-            let e: Vec<f64> = features
-                .combine(&y, &convex)
-                .into_iter()
-                .map(|v| v / 1000.0)
-                .collect();
+            let (um, _) = predict_um(
+                &reg,
+                &features,
+                r,
+                f.segments.iter().map(|s| (s.cl, &s.cc[..])),
+            )?;
+            let e: Vec<f64> = um.into_iter().map(|v| v / 1000.0).collect();
             println!("{}", serde_json::json!({"step_errors": e, "unit": "mm"}));
         }
+        StepCommand::Transfer {
+            surfaces,
+            train_on,
+            budget,
+            coordinates,
+            json,
+        } => super::step_transfer::run(surfaces, train_on, budget, coordinates, json)?,
     }
     Ok(())
 }

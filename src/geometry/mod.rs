@@ -11,10 +11,12 @@ mod step_features;
 
 pub use error::Error;
 pub use height_surface::{HeightJet, HeightSurface, HeightTerm};
-pub use paths::{MAX_SEGMENTS, PathPlan, grid_segments, height_surface_segments};
+pub use paths::{
+    MAX_SEGMENTS, PathPlan, function_segments, grid_segments, height_surface_segments,
+};
 pub use spline::{CubicSpline3, Parameterization};
 pub use step_error::{
     SegmentRef, StepError, StepErrorSegment, StepErrorSolver, step_error, step_errors,
     step_errors_split,
 };
-pub use step_features::{FeatureFrame, StepFeatures};
+pub use step_features::{FeatureFrame, PROFILE_FLOOR_UM, RowInfo, StepFeatures, StepInputs};

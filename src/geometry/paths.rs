@@ -133,23 +133,40 @@ pub fn height_surface_segments(
     plan: &PathPlan,
 ) -> Result<Vec<StepErrorSegment>> {
     surface.validate()?;
-    let (lines, pts) = plan.counts(surface.ly, surface.lx)?;
+    function_segments(
+        surface.lx,
+        surface.ly,
+        |x, y| surface.point_normal(x, y),
+        plan,
+    )
+}
+
+/// [`height_surface_segments`] over any height function: `point_normal(x, y)` gives the surface
+/// point and its outward unit normal at (x, y) in `[0, lx] x [0, ly]` (mm). Same paths, order
+/// and CL placement.
+pub fn function_segments(
+    lx: f64,
+    ly: f64,
+    point_normal: impl Fn(f64, f64) -> ([f64; 3], [f64; 3]),
+    plan: &PathPlan,
+) -> Result<Vec<StepErrorSegment>> {
+    let (lines, pts) = plan.counts(ly, lx)?;
     let (r, m) = (plan.tool_radius_mm, plan.cc_points);
     let mut out = Vec::with_capacity(lines * (pts - 1));
     for k in 0..lines {
         let y = if lines == 1 {
-            0.5 * surface.ly
+            0.5 * ly
         } else {
-            k as f64 / (lines - 1) as f64 * surface.ly
+            k as f64 / (lines - 1) as f64 * ly
         };
         for j in 0..pts - 1 {
-            let x0 = j as f64 / (pts - 1) as f64 * surface.lx;
-            let x1 = (j + 1) as f64 / (pts - 1) as f64 * surface.lx;
+            let x0 = j as f64 / (pts - 1) as f64 * lx;
+            let x1 = (j + 1) as f64 / (pts - 1) as f64 * lx;
             let mut cc = Vec::with_capacity(m);
             let mut normals = [[0.0; 3]; 2];
             for i in 0..m {
                 let t = i as f64 / (m - 1) as f64;
-                let (p, n) = surface.point_normal(x0 + (x1 - x0) * t, y);
+                let (p, n) = point_normal(x0 + (x1 - x0) * t, y);
                 if i == 0 {
                     normals[0] = n;
                 }

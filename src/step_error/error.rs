@@ -20,6 +20,16 @@ pub enum Error {
     /// bug): nothing the caller can fix.
     #[error("the step-error model metadata is unreadable: {0}")]
     Metadata(String),
+    /// The model file was written by a newer truecut whose inputs this build does not know.
+    #[error(
+        "the step-error model has metadata version {version} but this build reads versions up to {supported}: retrain the model with this build, or upgrade truecut"
+    )]
+    NewerModel {
+        /// Version in the file.
+        version: u32,
+        /// Newest version this build reads.
+        supported: u32,
+    },
     /// The caller's progress callback asked to stop (the job was cancelled).
     #[error("the training was cancelled")]
     Cancelled,

@@ -7,12 +7,14 @@
 mod batch;
 mod error;
 mod model;
+pub mod surfaces;
 mod train;
+pub mod transfer;
 
 #[cfg(test)]
 mod tests;
 
 pub use batch::{SegmentBatch, SegmentsBody, solve_batch};
 pub use error::{Error, Result};
-pub use model::{MODEL_KIND, ModelMeta, model_features};
+pub use model::{META_VERSION, MODEL_KIND, ModelMeta, model_features, predict_um};
 pub use train::TrainJob;

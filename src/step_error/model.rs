@@ -4,17 +4,30 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::error::{Error, Result};
-use crate::geometry::StepFeatures;
+use crate::geometry::{StepFeatures, StepInputs};
 use crate::nn::Regressor;
 
 /// Model kind under which the network is stored per machine and surface.
 pub const MODEL_KIND: &str = "step_error_nn";
+
+/// Version of [`ModelMeta`] this build writes and the newest it reads. 1: coordinate inputs
+/// only (no `version` and no `features.inputs` in the file: such models load with the
+/// coordinates they were trained on). 2: `features.inputs` names the inputs; the default is
+/// the distance profile ([`StepInputs::Profile`]).
+pub const META_VERSION: u32 = 2;
+
+fn version_1() -> u32 {
+    1
+}
 
 /// What is stored beside the weights (the model file's metadata, JSON).
 #[derive(Debug, Clone, Serialize, Deserialize)]
 pub struct ModelMeta {
     /// Always [`MODEL_KIND`].
     pub kind: String,
+    /// Metadata version ([`META_VERSION`] when written by this build; 1 when absent).
+    #[serde(default = "version_1")]
+    pub version: u32,
     /// Network inputs and outputs.
     pub features: StepFeatures,
     /// Tool radius of the training samples, mm (the default radius of predictions).
@@ -29,9 +42,28 @@ pub struct ModelMeta {
 
 impl ModelMeta {
     /// Reads the metadata of a model file ([`Error::Metadata`] if it is not a step-error
-    /// model's).
+    /// model's, [`Error::NewerModel`] if a newer truecut wrote it). Version 1 files (no
+    /// `version`, no `features.inputs`) read as coordinate inputs, which is what they were
+    /// trained on.
     pub fn of(reg: &Regressor) -> Result<ModelMeta> {
-        serde_json::from_str(&reg.metadata).map_err(|e| Error::Metadata(e.to_string()))
+        let meta: ModelMeta =
+            serde_json::from_str(&reg.metadata).map_err(|e| Error::Metadata(e.to_string()))?;
+        if meta.version > META_VERSION {
+            return Err(Error::NewerModel {
+                version: meta.version,
+                supported: META_VERSION,
+            });
+        }
+        if meta.features.len() != reg.n_inputs() || meta.features.n_outputs() != reg.n_outputs() {
+            return Err(Error::Metadata(format!(
+                "the features describe {} inputs and {} outputs but the network has {} and {}",
+                meta.features.len(),
+                meta.features.n_outputs(),
+                reg.n_inputs(),
+                reg.n_outputs()
+            )));
+        }
+        Ok(meta)
     }
 }
 
@@ -39,4 +71,21 @@ impl ModelMeta {
 pub fn model_features(reg: &Regressor) -> Result<(StepFeatures, f64)> {
     let meta = ModelMeta::of(reg)?;
     Ok((meta.features, meta.tool_radius_mm))
+}
+
+/// Step errors (µm) of `segments` (CL points, CC points) predicted by the network `reg` reading
+/// features `f` with ball radius `tool_radius_mm`: the feature rows, the network on all cores,
+/// then [`StepFeatures::combine`]. Also the m samples' own estimate (µm,
+/// [`StepFeatures::knot_estimate`]) with profile inputs, to show what the network adds.
+/// Errors name the first bad segment.
+pub fn predict_um<'a>(
+    reg: &Regressor,
+    f: &StepFeatures,
+    tool_radius_mm: f64,
+    segments: impl ExactSizeIterator<Item = ([[f64; 3]; 2], &'a [[f64; 3]])>,
+) -> Result<(Vec<f64>, Option<Vec<f64>>)> {
+    let (x, info) = f.matrix(tool_radius_mm, segments)?;
+    let y = reg.predict_parallel(&x, 0)?;
+    let knot = (f.inputs == StepInputs::Profile).then(|| StepFeatures::knot_estimate(&info));
+    Ok((f.combine(&y, &info), knot))
 }

@@ -76,7 +76,7 @@ fn a_trained_model_carries_its_features_and_radius() {
     assert_eq!(report["kind"], MODEL_KIND);
     let (features, radius) = model_features(&reg).unwrap();
     assert_eq!(radius, r);
-    assert!(features.two_sided);
+    assert_eq!(features.n_outputs(), 2);
     assert_eq!(ModelMeta::of(&reg).unwrap().output_unit, "um");
 }
 
@@ -85,4 +85,65 @@ fn too_few_segments_to_split_is_its_own_error() {
     let (r, segs) = segments(2, 3);
     let err = TrainJob::new(r).run(&segs[..2], &|_| true).unwrap_err();
     assert!(matches!(err, Error::TooFewToSplit | Error::Nn(_)), "{err}");
+}
+
+#[test]
+fn a_version_1_model_loads_with_its_coordinates_and_a_newer_one_is_refused() {
+    let (r, segs) = segments(6, 12);
+    let mut job = TrainJob::new(r);
+    job.cfg.epochs = 2;
+    job.features = geometry::StepFeatures {
+        two_sided: true,
+        ..geometry::StepFeatures::local()
+    };
+    let (mut reg, _) = job.run(&segs, &|_| true).unwrap();
+    let before = predict_um(
+        &reg,
+        &job_features(&reg),
+        r,
+        segs.iter().map(|s| (s.cl, &s.cc[..])),
+    )
+    .unwrap()
+    .0;
+    // What a version-1 file holds: no "version", no "features.inputs".
+    let mut meta: serde_json::Value = serde_json::from_str(&reg.metadata).unwrap();
+    meta.as_object_mut().unwrap().remove("version");
+    meta["features"].as_object_mut().unwrap().remove("inputs");
+    reg.metadata = meta.to_string();
+    let old = ModelMeta::of(&reg).unwrap();
+    assert_eq!(old.version, 1);
+    assert_eq!(old.features.inputs, geometry::StepInputs::Coordinates);
+    let after = predict_um(
+        &reg,
+        &old.features,
+        r,
+        segs.iter().map(|s| (s.cl, &s.cc[..])),
+    )
+    .unwrap()
+    .0;
+    assert_eq!(before, after);
+    // A newer file is refused with a sentence that says what to do.
+    meta["version"] = serde_json::json!(META_VERSION + 1);
+    reg.metadata = meta.to_string();
+    let err = ModelMeta::of(&reg).unwrap_err().to_string();
+    assert!(
+        err.contains("retrain") && err.contains(&format!("{}", META_VERSION + 1)),
+        "{err}"
+    );
+}
+
+fn job_features(reg: &crate::nn::Regressor) -> geometry::StepFeatures {
+    model_features(reg).unwrap().0
+}
+
+#[test]
+fn new_models_read_the_distance_profile() {
+    let (r, segs) = segments(6, 12);
+    let mut job = TrainJob::new(r);
+    job.cfg.epochs = 2;
+    let (reg, _) = job.run(&segs, &|_| true).unwrap();
+    let meta = ModelMeta::of(&reg).unwrap();
+    assert_eq!(meta.version, META_VERSION);
+    assert_eq!(meta.features, geometry::StepFeatures::profile());
+    assert_eq!(reg.n_inputs(), 22);
 }

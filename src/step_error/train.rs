@@ -7,7 +7,7 @@
 use serde_json::{Value, json};
 
 use super::error::{Error, Result};
-use super::model::{MODEL_KIND, ModelMeta};
+use super::model::{META_VERSION, MODEL_KIND, ModelMeta};
 use crate::geometry::{self, StepError, StepErrorSegment, StepErrorSolver, StepFeatures};
 use crate::nn::{self, Activation, Init, Mlp, Regressor, TrainConfig, gather_rows, split_indices};
 
@@ -43,15 +43,20 @@ fn abs_errors(pred: &[f64], truth: &[f64]) -> (f64, f64) {
 }
 
 impl TrainJob {
-    /// A fresh network with the default inputs ([`StepFeatures::local`], two-sided), hidden
-    /// [28, 20], He init and [`TrainConfig::default`].
+    /// A fresh network with the default inputs, hidden [28, 20], He init and
+    /// [`TrainConfig::default`].
+    ///
+    /// The default inputs are the distance profile ([`StepFeatures::profile`]): the m
+    /// distances eq. 1 extremises, divided by their largest magnitude, with the network
+    /// predicting what the m samples miss between them in the same unit. Coordinates (even in
+    /// the segment's local frame) carry the training surface's step lengths, tool radius and
+    /// heights in millimetres, and a network fed them extrapolates on any other surface
+    /// (measured on 24 generated surfaces, `truecut step transfer`: see BENCHMARKS.md); the
+    /// profile is the same on every smooth surface once divided by its size, so it transfers.
     pub fn new(tool_radius_mm: f64) -> Self {
         TrainJob {
             r: tool_radius_mm,
-            features: StepFeatures {
-                two_sided: true,
-                ..StepFeatures::local()
-            },
+            features: StepFeatures::profile(),
             hidden: vec![28, 20],
             init: Init::He,
             cfg: TrainConfig::default(),
@@ -70,12 +75,11 @@ impl TrainJob {
         progress: &dyn Fn(f64) -> bool,
     ) -> Result<(Regressor, Value)> {
         let f = match &self.base {
-            Some(b) => serde_json::from_str::<ModelMeta>(&b.metadata)
-                .map(|m| m.features)
-                .unwrap_or(self.features),
+            Some(b) => ModelMeta::of(b)?.features,
             None => self.features,
         };
-        let mut solver = StepErrorSolver::default().both_branches(f.two_sided);
+        f.validate()?;
+        let mut solver = StepErrorSolver::default().both_branches(f.n_outputs() == 2);
         let exact: Vec<StepError> = segs
             .iter()
             .enumerate()
@@ -91,8 +95,12 @@ impl TrainJob {
         if !progress(0.05) {
             return Err(Error::Cancelled);
         }
-        let (x, convex) = f.matrix(self.r, segs.iter().map(|s| (s.cl, &s.cc[..])))?;
-        let t: Vec<f64> = exact.iter().flat_map(|e| f.targets(e)).collect();
+        let (x, info) = f.matrix(self.r, segs.iter().map(|s| (s.cl, &s.cc[..])))?;
+        let t: Vec<f64> = exact
+            .iter()
+            .zip(&info)
+            .flat_map(|(e, i)| f.targets(e, i))
+            .collect();
         let y_um: Vec<f64> = exact.iter().map(|e| e.error_mm * 1000.0).collect();
         let (w, no) = (f.len(), f.n_outputs());
         let (train_idx, test_idx) = split_indices(segs.len(), self.test_fraction, self.cfg.seed);
@@ -115,7 +123,7 @@ impl TrainJob {
                 return Ok(None);
             }
             let p = reg.predict(&gather_rows(&x, w, &test_idx))?;
-            let c: Vec<bool> = test_idx.iter().map(|&i| convex[i]).collect();
+            let c: Vec<_> = test_idx.iter().map(|&i| info[i]).collect();
             let truth: Vec<f64> = test_idx.iter().map(|&i| y_um[i]).collect();
             Ok(Some(abs_errors(&f.combine(&p, &c), &truth)))
         };
@@ -164,6 +172,7 @@ impl TrainJob {
         });
         let meta = ModelMeta {
             kind: MODEL_KIND.into(),
+            version: META_VERSION,
             features: f,
             tool_radius_mm: self.r,
             hidden: reg.mlp().sizes()[1..reg.mlp().sizes().len() - 1].to_vec(),

@@ -3,7 +3,7 @@
 //! `cargo bench --bench step_error`).
 
 use truecut::geometry::{
-    HeightSurface, PathPlan, StepError, StepErrorSegment, StepErrorSolver, StepFeatures,
+    HeightSurface, PathPlan, RowInfo, StepError, StepErrorSegment, StepErrorSolver, StepFeatures,
     height_surface_segments,
 };
 use truecut::nn::{Activation, Init, Mlp, Regressor, TrainConfig, gather_rows, split_indices};
@@ -34,11 +34,16 @@ fn data(id: u32, lines: usize, pts: usize) -> Data {
     Data { segs, exact, y_um }
 }
 
-fn xy(f: &StepFeatures, d: &Data) -> (Vec<f64>, Vec<bool>, Vec<f64>) {
+fn xy(f: &StepFeatures, d: &Data) -> (Vec<f64>, Vec<RowInfo>, Vec<f64>) {
     let (x, c) = f
         .matrix(R, d.segs.iter().map(|s| (s.cl, &s.cc[..])))
         .unwrap();
-    let t = d.exact.iter().flat_map(|e| f.targets(e)).collect();
+    let t = d
+        .exact
+        .iter()
+        .zip(&c)
+        .flat_map(|(e, i)| f.targets(e, i))
+        .collect();
     (x, c, t)
 }
 
@@ -201,7 +206,7 @@ fn fine_tuning_with_few_samples_does_not_degrade() {
     let xv = gather_rows(&x, w, &vi);
     let tv = gather_rows(&t, no, &vi);
     assert!(tuned.mse(&xv, &tv).unwrap() <= base.mse(&xv, &tv).unwrap() + 1e-12);
-    let cr: Vec<bool> = rest.iter().map(|&i| c[i]).collect();
+    let cr: Vec<RowInfo> = rest.iter().map(|&i| c[i]).collect();
     let yr: Vec<f64> = rest.iter().map(|&i| d3.y_um[i]).collect();
     let before = abs_err(
         &f.combine(&base.predict(&gather_rows(&x, w, &rest)).unwrap(), &cr),

@@ -24,7 +24,7 @@ use crate::api::model_versions::{self as versions, ModelRef, RollbackRequest};
 use crate::geometry::{StepErrorSegment, StepFeatures, grid_segments};
 use crate::jobs::{Progress, Runner};
 use crate::nn::{self, Init, Regressor, TrainConfig};
-use crate::step_error::{MODEL_KIND, ModelMeta, SegmentBatch, TrainJob};
+use crate::step_error::{MODEL_KIND, ModelMeta, SegmentBatch, TrainJob, predict_um};
 use crate::store::JobDone;
 
 #[derive(Debug, Deserialize)]
@@ -97,7 +97,7 @@ async fn load_model(
         .await?
         .ok_or_else(|| model_missing(machine, surface))?;
     let reg = Regressor::from_bytes(&bytes).map_err(ApiError::internal)?;
-    let meta: ModelMeta = serde_json::from_str(&reg.metadata).map_err(ApiError::internal)?;
+    let meta = ModelMeta::of(&reg)?;
     Ok((reg, meta))
 }
 
@@ -192,10 +192,7 @@ async fn prepare(
             (meta.features, sizes[1..sizes.len() - 1].to_vec())
         }
         None => {
-            let f = req.features.unwrap_or(StepFeatures {
-                two_sided: true,
-                ..StepFeatures::local()
-            });
+            let f = req.features.unwrap_or_else(StepFeatures::profile);
             f.validate()?;
             let hidden = req.hidden.clone().unwrap_or_else(|| vec![28, 20]);
             if hidden.is_empty() || hidden.len() > 8 || hidden.iter().any(|&h| h == 0 || h > 1024) {
@@ -431,14 +428,8 @@ pub(super) async fn predict(
             let req = decode_segments(&headers, &body)?;
             let r = req.tool_radius.unwrap_or(meta.tool_radius_mm);
             let batch = SegmentBatch::concat(req.parts);
-            let f = meta.features;
-            let (x, convex) = f.matrix(r, batch.iter())?;
-            let y = reg.predict_parallel(&x, 0)?;
-            let e: Vec<f64> = f
-                .combine(&y, &convex)
-                .into_iter()
-                .map(|v| v / 1000.0)
-                .collect();
+            let (um, _) = predict_um(&reg, &meta.features, r, batch.iter())?;
+            let e: Vec<f64> = um.into_iter().map(|v| v / 1000.0).collect();
             serde_json::to_vec(&PredictAnswer {
                 step_errors: &e,
                 tool_radius: r,
