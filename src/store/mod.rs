@@ -13,6 +13,7 @@ mod jobs;
 mod machines;
 mod measurements;
 mod models;
+mod storage;
 mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
@@ -21,4 +22,8 @@ pub use jobs::{CancelOutcome, JobRecord};
 pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};
 pub use models::{MODEL_FORMAT_VERSION, ModelStore, is_valid_id};
+pub use storage::{
+    StorageFailure, StorageState, check_data_dir, free_bytes, probe_writable, state_of,
+    storage_failure,
+};
 pub use surfaces::{Surface, SurfaceSummary};

@@ -12,6 +12,7 @@ mod compensated;
 mod contour;
 mod decomposition;
 mod gap;
+mod hardening;
 mod jobs_cancel;
 mod jobs_models;
 mod resources;

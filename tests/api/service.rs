@@ -150,7 +150,10 @@ async fn health_metrics_request_id(app: TestApp) {
         r.headers().contains_key("x-request-id"),
         "request id is echoed"
     );
-    assert_eq!(r.json::<Value>().await.unwrap(), json!({"status": "ok"}));
+    let health = r.json::<Value>().await.unwrap();
+    assert_eq!(health["status"], "ok", "{health}");
+    assert_eq!(health["storage"]["writable"], true, "{health}");
+    assert!(health["storage"]["free_bytes"].as_u64().unwrap() > 0, "{health}");
     // A caller's request id is kept.
     let r = app
         .client
