@@ -63,7 +63,7 @@ impl Limits {
     pub fn check_deviations(&self, field: &str, deviations: &[f64]) -> ApiResult<()> {
         let limit = self.max_deviation_mm;
         let bad: Vec<usize> = (0..deviations.len())
-            .filter(|&k| !(deviations[k].abs() <= limit))
+            .filter(|&k| deviations[k].is_nan() || deviations[k].abs() > limit)
             .collect();
         let Some(&first) = bad.first() else {
             return Ok(());
@@ -98,7 +98,7 @@ impl Limits {
         for k in 0..measured.len() {
             let (along, tangential) = split(measured[k], nominal[k], normals[k]);
             deviations.push(along);
-            if !(tangential <= tol[k]) {
+            if tangential.is_nan() || tangential > tol[k] {
                 bad.push((k, tangential));
             }
         }

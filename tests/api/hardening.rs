@@ -38,7 +38,7 @@ async fn impossible_values_are_refused_naming_field_and_range(app: TestApp) {
         let r = app.put_json(SURF, &surface).await;
         assert_problem(r, 400, &["tool_radius", "(0, 100]"]).await;
     }
-    let list = app.get(&format!("{up}")).await.json::<Value>().await.unwrap();
+    let list = app.get(&up).await.json::<Value>().await.unwrap();
     let id = list["measurements"][0]["id"].as_str().unwrap().to_string();
     let r = app
         .get(&format!("{SURF}/compensation?measurement={id}&cl=true&tool_radius=-1"))
