@@ -1,6 +1,6 @@
 -- wrk script: POST /v1/decompose with a 2,025-sample signal (about 40 kB of JSON) and count
 -- the answers by status. Goodput = decompositions answered 200 per second.
--- Run by bench/overload.sh; by hand: wrk -t2 -c32 -d15s -s bench/overload.lua http://127.0.0.1:PORT
+-- Run by bench/overload.sh; by hand: wrk -t2 -c32 -d15s -s bench/overload.lua http://127.0.0.1:PORT/v1/decompose
 local n = 2025
 local values = {}
 for i = 1, n do

@@ -15,9 +15,9 @@ port="$(python3 -c 'import socket; s = socket.socket(); s.bind(("127.0.0.1", 0))
 server=$!
 trap 'kill ${server} 2>/dev/null; wait ${server} 2>/dev/null; rm -rf "${work}"' EXIT
 for _ in $(seq 1 100); do curl -sf "http://127.0.0.1:${port}/healthz" >/dev/null && break; sleep 0.1; done
-wrk -t2 -c8 -d3s -s bench/overload.lua "http://127.0.0.1:${port}" >/dev/null  # warm-up
+wrk -t2 -c8 -d3s -s bench/overload.lua "http://127.0.0.1:${port}/v1/decompose" >/dev/null  # warm-up
 for c in "${conns[@]}"; do
-  line="$(wrk -t2 -c"$c" -d"${secs}s" --timeout 10s -s bench/overload.lua "http://127.0.0.1:${port}" | grep RESULT)"
+  line="$(wrk -t2 -c"$c" -d"${secs}s" --timeout 10s -s bench/overload.lua "http://127.0.0.1:${port}/v1/decompose" | grep RESULT)"
   echo "connections ${c}: ${line#RESULT }"
 done
 echo "server VmHWM: $(grep VmHWM /proc/${server}/status | awk '{printf "%.1f MiB", $2/1024}')"
