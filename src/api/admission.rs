@@ -42,7 +42,9 @@ impl BodyBudget {
     /// A budget of `total_bytes`; a request waits at most `wait` for room. A body without
     /// Content-Length counts as `max_body_bytes`.
     pub fn new(total_bytes: u64, max_body_bytes: u64, wait: Duration) -> Self {
-        let units = total_bytes.div_ceil(UNIT).min(Semaphore::MAX_PERMITS as u64) as usize;
+        let units = total_bytes
+            .div_ceil(UNIT)
+            .min(Semaphore::MAX_PERMITS as u64) as usize;
         BodyBudget {
             units: Arc::new(Semaphore::new(units)),
             total_bytes,
@@ -90,8 +92,7 @@ impl BodyBudget {
             )));
         }
         let units = u32::try_from(bytes.div_ceil(UNIT)).unwrap_or(u32::MAX);
-        match tokio::time::timeout(self.wait, self.units.clone().acquire_many_owned(units)).await
-        {
+        match tokio::time::timeout(self.wait, self.units.clone().acquire_many_owned(units)).await {
             Ok(Ok(permit)) => Ok(Some(permit)),
             Ok(Err(_closed)) => Err(ApiError::unavailable(
                 "the server is shutting down; retry on another instance or after restart",

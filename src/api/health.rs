@@ -25,7 +25,7 @@ async fn healthz(State(state): State<AppState>) -> ApiResult<ApiJson<Value>> {
     let dir = state.store.models().root().to_path_buf();
     let storage = tokio::task::spawn_blocking(move || crate::store::state_of(&dir))
         .await
-    .map_err(ApiError::internal)?;
+        .map_err(ApiError::internal)?;
     let status = if storage.writable { "ok" } else { "degraded" };
     Ok(ApiJson(json!({"status": status, "storage": storage})))
 }

@@ -91,7 +91,9 @@ async fn post_measurement(
     }
     let limits = state.limits;
     let (deviations, points) = tokio::task::spawn_blocking(move || match data {
-        ProbeData::Deviations(d) => limits.check_deviations("deviations", &d).map(|()| (d, None)),
+        ProbeData::Deviations(d) => limits
+            .check_deviations("deviations", &d)
+            .map(|()| (d, None)),
         ProbeData::Points(p) => {
             super::ranges::check_coords("points", &p)?;
             limits

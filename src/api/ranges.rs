@@ -126,7 +126,11 @@ impl Limits {
 fn split(p: [f64; 3], q: [f64; 3], n: [f64; 3]) -> (f64, f64) {
     let d = [p[0] - q[0], p[1] - q[1], p[2] - q[2]];
     let along = d[0] * n[0] + d[1] * n[1] + d[2] * n[2];
-    let t = [d[0] - along * n[0], d[1] - along * n[1], d[2] - along * n[2]];
+    let t = [
+        d[0] - along * n[0],
+        d[1] - along * n[1],
+        d[2] - along * n[2],
+    ];
     (along, (t[0] * t[0] + t[1] * t[1] + t[2] * t[2]).sqrt())
 }
 
@@ -190,14 +194,16 @@ fn likely_cause(
         seen > 0 && ok * 10 >= seen * 9
     };
     if fits(&|k| n - 1 - k) {
-        return "they fit the nominals in reverse order: send them in the surface's order"
-            .into();
+        return "they fit the nominals in reverse order: send them in the surface's order".into();
     }
     let row = nu as isize;
     for (s, what) in [(1, "point"), (-1, "point"), (row, "row"), (-row, "row")] {
         if s.abs() < n && fits(&|k| k + s) {
             let (sign, fix) = if s > 0 {
-                ("+", "the first nominal has no point: one is missing at the start")
+                (
+                    "+",
+                    "the first nominal has no point: one is missing at the start",
+                )
             } else {
                 ("-", "one extra point (or row) comes first")
             };
@@ -252,13 +258,10 @@ pub fn check_tool_radius(field: &str, r: f64) -> ApiResult<()> {
 /// Refuses a finite volumetric error component beyond ±[`VOLUMETRIC_ERROR_LIMIT_MM`],
 /// naming `field[i]`.
 pub fn check_volumetric_errors(field: &str, errors: &[[f64; 3]]) -> ApiResult<()> {
-    match errors
-        .iter()
-        .position(|e| {
-            e.iter()
-                .any(|c| c.is_finite() && c.abs() > VOLUMETRIC_ERROR_LIMIT_MM)
-        })
-    {
+    match errors.iter().position(|e| {
+        e.iter()
+            .any(|c| c.is_finite() && c.abs() > VOLUMETRIC_ERROR_LIMIT_MM)
+    }) {
         None => Ok(()),
         Some(i) => Err(ApiError::bad_request(format!(
             "{field}[{i}] = {:?} is outside the physical range: a positioning error must lie \

@@ -14,7 +14,7 @@ pub use height_surface::{HeightJet, HeightSurface, HeightTerm};
 pub use paths::{MAX_SEGMENTS, PathPlan, grid_segments, height_surface_segments};
 pub use spline::{CubicSpline3, Parameterization};
 pub use step_error::{
-    SegmentRef, StepError, StepErrorSegment, StepErrorSolver, check_segment, step_error, step_errors,
-    step_errors_split,
+    SegmentRef, StepError, StepErrorSegment, StepErrorSolver, check_segment, step_error,
+    step_errors, step_errors_split,
 };
 pub use step_features::{FeatureFrame, StepFeatures};

@@ -16,10 +16,14 @@ pub enum StorageFailure {
     )]
     Full(String),
     /// The file system or database takes no writes (EROFS, SQLITE_READONLY, PostgreSQL 25006).
-    #[error("the storage is read-only: {0}. Remount it read-write (or point --data-dir elsewhere) and retry")]
+    #[error(
+        "the storage is read-only: {0}. Remount it read-write (or point --data-dir elsewhere) and retry"
+    )]
     ReadOnly(String),
     /// The service may not write there (EACCES, EPERM: permissions, an immutable dir).
-    #[error("the service may not write to its storage: {0}. Give it write access to the data dir and retry")]
+    #[error(
+        "the service may not write to its storage: {0}. Give it write access to the data dir and retry"
+    )]
     Forbidden(String),
 }
 
@@ -44,9 +48,7 @@ pub fn storage_failure(err: &anyhow::Error) -> Option<StorageFailure> {
 fn classify_io(io: &std::io::Error, what: &str) -> Option<StorageFailure> {
     let what = what.to_string();
     match (io.kind(), io.raw_os_error()) {
-        (ErrorKind::StorageFull, _) | (_, Some(28 | 122)) => {
-            Some(StorageFailure::Full(what))
-        }
+        (ErrorKind::StorageFull, _) | (_, Some(28 | 122)) => Some(StorageFailure::Full(what)),
         (ErrorKind::ReadOnlyFilesystem, _) | (_, Some(30)) => Some(StorageFailure::ReadOnly(what)),
         (ErrorKind::PermissionDenied, _) | (_, Some(1 | 13)) => {
             Some(StorageFailure::Forbidden(what))

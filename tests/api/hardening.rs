@@ -26,11 +26,18 @@ async fn impossible_values_are_refused_naming_field_and_range(app: TestApp) {
     let r = app.post_json(&up, &json!({"deviations": d})).await;
     assert_problem(r, 400, &["deviations[7]", "-5.5"]).await;
     let r = app
-        .post_raw(&up, "text/csv", "deviation\n0\n0\n0\n0\n0\n0\n0\n0\n0\n0\n0\n9\n")
+        .post_raw(
+            &up,
+            "text/csv",
+            "deviation\n0\n0\n0\n0\n0\n0\n0\n0\n0\n0\n0\n9\n",
+        )
         .await;
     assert_problem(r, 400, &["deviations[11]"]).await;
     d[7] = 0.3;
-    assert_eq!(app.post_json(&up, &json!({"deviations": d})).await.status(), 201);
+    assert_eq!(
+        app.post_json(&up, &json!({"deviations": d})).await.status(),
+        201
+    );
     // Tool radii: negative, zero, absurd; on the surface and in the compensation query.
     let mut surface = flat_surface(4, 3);
     for bad in [-1.0, 0.0, 1e6] {
@@ -41,11 +48,15 @@ async fn impossible_values_are_refused_naming_field_and_range(app: TestApp) {
     let list = app.get(&up).await.json::<Value>().await.unwrap();
     let id = list["measurements"][0]["id"].as_str().unwrap().to_string();
     let r = app
-        .get(&format!("{SURF}/compensation?measurement={id}&cl=true&tool_radius=-1"))
+        .get(&format!(
+            "{SURF}/compensation?measurement={id}&cl=true&tool_radius=-1"
+        ))
         .await;
     assert_problem(r, 400, &["tool_radius", "-1", "(0, 100]"]).await;
     let r = app
-        .get(&format!("{SURF}/compensation?measurement={id}&cl=true&tool_radius=2"))
+        .get(&format!(
+            "{SURF}/compensation?measurement={id}&cl=true&tool_radius=2"
+        ))
         .await;
     assert_eq!(r.status(), 200);
     // Coordinates beyond 100 m.
@@ -101,7 +112,11 @@ async fn reversed_or_shifted_points_are_refused(app: TestApp) {
     let mut shifted = good[1..].to_vec();
     shifted.push(good[11]);
     let csv: String = std::iter::once("x,y,z\n".to_string())
-        .chain(shifted.iter().map(|p| format!("{},{},{}\n", p[0], p[1], p[2])))
+        .chain(
+            shifted
+                .iter()
+                .map(|p| format!("{},{},{}\n", p[0], p[1], p[2])),
+        )
         .collect();
     let r = app.post_raw(&up, "text/csv", csv).await;
     assert_problem(r, 422, &["points[0]", "shifted by one point"]).await;
@@ -109,7 +124,10 @@ async fn reversed_or_shifted_points_are_refused(app: TestApp) {
     let r = app.post_json(&up, &json!({"points": good})).await;
     assert_eq!(r.status(), 201);
     let body = r.json::<Value>().await.unwrap();
-    assert!((body["max_abs"].as_f64().unwrap() - 0.02).abs() < 1e-12, "{body}");
+    assert!(
+        (body["max_abs"].as_f64().unwrap() - 0.02).abs() < 1e-12,
+        "{body}"
+    );
     assert_eq!(
         app.get(&up).await.json::<Value>().await.unwrap()["measurements"]
             .as_array()
@@ -154,7 +172,10 @@ async fn a_full_pool_turns_requests_away_before_reading_their_bodies() {
     let mut s = start_upload(&app.addr, "/v1/decompose", 10_000_000, 0).await;
     let text = answer(&mut s, Duration::from_secs(5)).await;
     assert!(text.starts_with("HTTP/1.1 503"), "{text}");
-    assert!(text.to_ascii_lowercase().contains("retry-after: 2"), "{text}");
+    assert!(
+        text.to_ascii_lowercase().contains("retry-after: 2"),
+        "{text}"
+    );
     assert!(t0.elapsed() < Duration::from_secs(2), "{:?}", t0.elapsed());
     // Uploads never wait for a worker, so they are not shed.
     seed_machine_and_surface(&app, "m", "s", 2, 2).await;
@@ -230,7 +251,11 @@ async fn the_body_budget_bounds_bytes_in_flight() {
         tokio::time::sleep(Duration::from_millis(5)).await;
     }
     let budget = app.server().state().body_budget.clone();
-    assert!(budget.available_bytes() < 400_000, "{}", budget.available_bytes());
+    assert!(
+        budget.available_bytes() < 400_000,
+        "{}",
+        budget.available_bytes()
+    );
     // A 700 kB upload finds no room within the wait (the body timeout, 1 s).
     let path = "/v1/machines/m/surfaces/s/measurements";
     let t0 = Instant::now();
@@ -238,7 +263,11 @@ async fn the_body_budget_bounds_bytes_in_flight() {
     let text = answer(&mut second, Duration::from_secs(5)).await;
     assert!(text.starts_with("HTTP/1.1 503"), "{text}");
     assert!(text.contains("--max-inflight-body-mb"), "{text}");
-    assert!(t0.elapsed() >= Duration::from_millis(900), "{:?}", t0.elapsed());
+    assert!(
+        t0.elapsed() >= Duration::from_millis(900),
+        "{:?}",
+        t0.elapsed()
+    );
     // Small requests are not counted and go through meanwhile.
     assert_eq!(app.get("/healthz").await.status(), 200);
     release.store(true, Ordering::SeqCst);
@@ -252,11 +281,17 @@ async fn a_budget_below_the_body_limit_is_refused_at_start() {
     let mut config =
         truecut::config::Config::new("127.0.0.1:0".parse().unwrap(), dir.path().into());
     config.max_inflight_body_mb = 1;
-    let err = truecut::server::start(&config).await.err().expect("refused");
+    let err = truecut::server::start(&config)
+        .await
+        .err()
+        .expect("refused");
     assert!(err.to_string().contains("--max-inflight-body-mb"), "{err}");
     config.max_inflight_body_mb = 512;
     config.max_deviation_mm = -1.0;
-    let err = truecut::server::start(&config).await.err().expect("refused");
+    let err = truecut::server::start(&config)
+        .await
+        .err()
+        .expect("refused");
     assert!(err.to_string().contains("--max-deviation-mm"), "{err}");
 }
 
@@ -334,7 +369,10 @@ async fn a_full_disk_answers_507_and_healthz_says_so() {
     let status = r.status().as_u16();
     let body = r.json::<Value>().await.unwrap();
     assert_eq!(status, 507, "{body}");
-    assert!(body["detail"].as_str().unwrap().contains("storage is full"), "{body}");
+    assert!(
+        body["detail"].as_str().unwrap().contains("storage is full"),
+        "{body}"
+    );
     let h = client
         .get(format!("{base}/healthz"))
         .send()
@@ -349,7 +387,10 @@ async fn a_full_disk_answers_507_and_healthz_says_so() {
     // Room again: saves work again.
     std::fs::remove_file(&filler).unwrap();
     let h = client.get(format!("{base}/healthz")).send().await.unwrap();
-    assert_eq!(h.json::<Value>().await.unwrap()["storage"]["writable"], true);
+    assert_eq!(
+        h.json::<Value>().await.unwrap()["storage"]["writable"],
+        true
+    );
     server.stop().await.unwrap();
 }
 
@@ -363,7 +404,10 @@ async fn a_read_only_data_dir_fails_at_start() {
     };
     let config = truecut::config::Config::new("127.0.0.1:0".parse().unwrap(), dir.path().into());
     let t0 = Instant::now();
-    let err = truecut::server::start(&config).await.err().expect("refused");
+    let err = truecut::server::start(&config)
+        .await
+        .err()
+        .expect("refused");
     let text = format!("{err:#}");
     assert!(text.contains(&dir.path().display().to_string()), "{text}");
     assert!(text.contains("read-only"), "{text}");

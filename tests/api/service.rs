@@ -153,7 +153,10 @@ async fn health_metrics_request_id(app: TestApp) {
     let health = r.json::<Value>().await.unwrap();
     assert_eq!(health["status"], "ok", "{health}");
     assert_eq!(health["storage"]["writable"], true, "{health}");
-    assert!(health["storage"]["free_bytes"].as_u64().unwrap() > 0, "{health}");
+    assert!(
+        health["storage"]["free_bytes"].as_u64().unwrap() > 0,
+        "{health}"
+    );
     // A caller's request id is kept.
     let r = app
         .client

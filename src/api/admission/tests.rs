@@ -3,7 +3,9 @@
 use super::*;
 
 fn request(method: &str, headers: &[(&str, &str)]) -> Request {
-    let mut b = axum::http::Request::builder().method(method).uri("/v1/decompose");
+    let mut b = axum::http::Request::builder()
+        .method(method)
+        .uri("/v1/decompose");
     for (k, v) in headers {
         b = b.header(*k, *v);
     }
@@ -30,7 +32,10 @@ fn pool_routes_are_the_posts_but_uploads_and_the_map_put() {
 fn reservations_follow_the_declared_length() {
     let b = BodyBudget::new(10 << 20, 4 << 20, Duration::from_millis(10));
     assert_eq!(b.reservation(&request("GET", &[])), 0);
-    assert_eq!(b.reservation(&request("POST", &[("content-length", "1000")])), 0);
+    assert_eq!(
+        b.reservation(&request("POST", &[("content-length", "1000")])),
+        0
+    );
     assert_eq!(
         b.reservation(&request("POST", &[("content-length", "3000000")])),
         3_000_000
@@ -53,7 +58,10 @@ async fn a_full_budget_turns_away_after_the_wait_and_frees_on_drop() {
     assert!(first.is_some());
     assert_eq!(b.available_bytes(), 2 << 20);
     let refused = b.reserve(4 << 20).await.unwrap_err();
-    assert_eq!(refused.status(), axum::http::StatusCode::SERVICE_UNAVAILABLE);
+    assert_eq!(
+        refused.status(),
+        axum::http::StatusCode::SERVICE_UNAVAILABLE
+    );
     assert!(refused.detail().contains("--max-inflight-body-mb"));
     drop(first);
     assert!(b.reserve(4 << 20).await.unwrap().is_some());

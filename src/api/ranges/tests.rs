@@ -35,7 +35,11 @@ fn shifted_points_are_refused_and_called_shifted() {
     let mut m: Vec<[f64; 3]> = q[1..].to_vec();
     m.push([8.0, 8.0, 0.0]);
     let e = Limits::default().pair_points(&m, &q, &n, 5).unwrap_err();
-    assert!(e.detail().contains("shifted by one point"), "{}", e.detail());
+    assert!(
+        e.detail().contains("shifted by one point"),
+        "{}",
+        e.detail()
+    );
     let mut m: Vec<[f64; 3]> = q[..q.len() - 5].to_vec();
     m.splice(0..0, (0..5).map(|i| [2.0 * i as f64, -2.0, 0.0]));
     let e = Limits::default().pair_points(&m, &q, &n, 5).unwrap_err();
@@ -62,7 +66,10 @@ fn deviations_beyond_the_setting_are_refused_naming_it() {
     assert!(e.detail().contains("--max-deviation-mm"));
     let (q, n) = grid(2, 2);
     let m: Vec<[f64; 3]> = q.iter().map(|p| [p[0], p[1], 7.0]).collect();
-    assert_eq!(l.pair_points(&m, &q, &n, 2).unwrap_err().status().as_u16(), 400);
+    assert_eq!(
+        l.pair_points(&m, &q, &n, 2).unwrap_err().status().as_u16(),
+        400
+    );
 }
 
 #[test]

@@ -5,12 +5,25 @@ use super::*;
 #[test]
 fn full_read_only_and_forbidden_io_errors_are_classified() {
     let err = |code| {
-        anyhow::Error::new(std::io::Error::from_raw_os_error(code)).context("cannot write model file x")
+        anyhow::Error::new(std::io::Error::from_raw_os_error(code))
+            .context("cannot write model file x")
     };
-    assert!(matches!(storage_failure(&err(28)), Some(StorageFailure::Full(_))));
-    assert!(matches!(storage_failure(&err(122)), Some(StorageFailure::Full(_))));
-    assert!(matches!(storage_failure(&err(30)), Some(StorageFailure::ReadOnly(_))));
-    assert!(matches!(storage_failure(&err(13)), Some(StorageFailure::Forbidden(_))));
+    assert!(matches!(
+        storage_failure(&err(28)),
+        Some(StorageFailure::Full(_))
+    ));
+    assert!(matches!(
+        storage_failure(&err(122)),
+        Some(StorageFailure::Full(_))
+    ));
+    assert!(matches!(
+        storage_failure(&err(30)),
+        Some(StorageFailure::ReadOnly(_))
+    ));
+    assert!(matches!(
+        storage_failure(&err(13)),
+        Some(StorageFailure::Forbidden(_))
+    ));
     assert_eq!(storage_failure(&err(2)), None);
     assert_eq!(storage_failure(&anyhow::anyhow!("a bug")), None);
     let sentence = storage_failure(&err(28)).unwrap().to_string();
@@ -20,12 +33,27 @@ fn full_read_only_and_forbidden_io_errors_are_classified() {
 
 #[test]
 fn database_codes_are_classified() {
-    assert!(matches!(classify_db_code(Some("13"), "full"), Some(StorageFailure::Full(_))));
-    assert!(matches!(classify_db_code(Some("8"), "ro"), Some(StorageFailure::ReadOnly(_))));
+    assert!(matches!(
+        classify_db_code(Some("13"), "full"),
+        Some(StorageFailure::Full(_))
+    ));
+    assert!(matches!(
+        classify_db_code(Some("8"), "ro"),
+        Some(StorageFailure::ReadOnly(_))
+    ));
     // SQLITE_READONLY_DBMOVED = 8 | (4 << 8)
-    assert!(matches!(classify_db_code(Some("1032"), "ro"), Some(StorageFailure::ReadOnly(_))));
-    assert!(matches!(classify_db_code(Some("53100"), "pg"), Some(StorageFailure::Full(_))));
-    assert!(matches!(classify_db_code(Some("25006"), "pg"), Some(StorageFailure::ReadOnly(_))));
+    assert!(matches!(
+        classify_db_code(Some("1032"), "ro"),
+        Some(StorageFailure::ReadOnly(_))
+    ));
+    assert!(matches!(
+        classify_db_code(Some("53100"), "pg"),
+        Some(StorageFailure::Full(_))
+    ));
+    assert!(matches!(
+        classify_db_code(Some("25006"), "pg"),
+        Some(StorageFailure::ReadOnly(_))
+    ));
     assert_eq!(classify_db_code(Some("23505"), "unique"), None);
     assert_eq!(classify_db_code(Some("19"), "constraint"), None);
     assert_eq!(classify_db_code(None, "?"), None);
@@ -37,7 +65,11 @@ fn a_writable_dir_probes_clean_and_reports_its_room() {
     let state = state_of(dir.path());
     assert!(state.writable, "{state:?}");
     assert!(state.free_bytes.is_some_and(|b| b > 0));
-    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0, "the probe is removed");
+    assert_eq!(
+        std::fs::read_dir(dir.path()).unwrap().count(),
+        0,
+        "the probe is removed"
+    );
     check_data_dir(&dir.path().join("new")).unwrap();
 }
 
