@@ -64,7 +64,42 @@ pub struct Config {
     /// for the database's latency: live instances judged gone.
     #[arg(long, default_value_t = 10.0, env = "TRUECUT_LEASE_S")]
     pub lease_s: f64,
+
+    /// MiB of request bodies the whole process holds at once (declared Content-Length; a
+    /// chunked body counts as --max-body-bytes). Requests beyond it wait up to
+    /// --body-timeout-s for room, then get 503 + Retry-After. Bounds the memory of
+    /// concurrent large uploads (BENCHMARKS.md, "Concurrent uploads").
+    #[arg(long, default_value_t = DEFAULT_MAX_INFLIGHT_BODY_MB, env = "TRUECUT_MAX_INFLIGHT_BODY_MB")]
+    pub max_inflight_body_mb: usize,
+
+    /// Plausibility limit of a probe deviation, mm: a measurement whose deviation from the
+    /// nominal (along the normal) exceeds it in magnitude is refused (400 naming the point).
+    #[arg(long, default_value_t = DEFAULT_MAX_DEVIATION_MM, env = "TRUECUT_MAX_DEVIATION_MM")]
+    pub max_deviation_mm: f64,
+
+    /// Largest tangential distance, mm, of a measured point from the nominal it is paired
+    /// with (points are paired by order); also never more than half the local grid
+    /// spacing. Beyond it the upload is refused as reversed or shifted.
+    #[arg(long, default_value_t = DEFAULT_MAX_TANGENTIAL_MM, env = "TRUECUT_MAX_TANGENTIAL_MM")]
+    pub max_tangential_mm: f64,
 }
+
+/// Default `--max-inflight-body-mb`: one maximum-size body (128 MiB) plus room for small
+/// ones, so 8 concurrent maximum uploads stay under 300 MB of resident memory
+/// (BENCHMARKS.md, "Concurrent uploads").
+pub const DEFAULT_MAX_INFLIGHT_BODY_MB: usize = 160;
+
+/// Default `--max-deviation-mm`: 5 mm. A finishing allowance is tenths of a mm and a
+/// machine's error under a millimetre; a probe reading 5 mm off the nominal is a wrong
+/// part, a wrong datum or a flyer, not a machining error to compensate.
+pub const DEFAULT_MAX_DEVIATION_MM: f64 = 5.0;
+
+/// Default `--max-tangential-mm`: 0.5 mm. A probe touches the surface along its normal at
+/// the nominal point, so the measured point lies off the nominal along the normal; the
+/// tangential part is the probing position error (micrometres on a machine tool) plus
+/// stylus-tip lateral deflection (well under 0.1 mm). A point paired with the wrong nominal
+/// (a reversed or shifted upload) is off by at least one grid spacing.
+pub const DEFAULT_MAX_TANGENTIAL_MM: f64 = 0.5;
 
 impl Config {
     /// A configuration with every default, serving `addr` from `data_dir` (tests, benches).
@@ -81,6 +116,9 @@ impl Config {
             body_timeout_s: 30.0,
             shutdown_grace_s: 30,
             lease_s: 10.0,
+            max_inflight_body_mb: DEFAULT_MAX_INFLIGHT_BODY_MB,
+            max_deviation_mm: DEFAULT_MAX_DEVIATION_MM,
+            max_tangential_mm: DEFAULT_MAX_TANGENTIAL_MM,
         }
     }
 

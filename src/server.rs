@@ -45,6 +45,26 @@ pub fn load_tokens(config: &Config) -> Result<Tokens> {
 /// (port 0 picks a free port; see [`Server::addr`]).
 pub async fn start(config: &Config) -> Result<Server> {
     let tokens = load_tokens(config)?;
+    let body_timeout = std::time::Duration::try_from_secs_f64(config.body_timeout_s)
+        .ok()
+        .filter(|d| !d.is_zero())
+        .ok_or_else(|| {
+            anyhow::anyhow!(
+                "--body-timeout-s must be a positive number of seconds, got {}",
+                config.body_timeout_s
+            )
+        })?;
+    let limits = api::ranges::Limits::from_config(config)?;
+    let inflight = (config.max_inflight_body_mb as u64).saturating_mul(1024 * 1024);
+    if inflight < config.max_body_bytes as u64 {
+        bail!(
+            "--max-inflight-body-mb ({} MiB) is smaller than --max-body-bytes ({} bytes): the \
+             largest accepted body could never be admitted; raise it or lower --max-body-bytes",
+            config.max_inflight_body_mb,
+            config.max_body_bytes
+        );
+    }
+    crate::store::check_data_dir(&config.data_dir)?;
     let store = Store::open(&config.data_dir, config.database_url.as_deref()).await?;
     let lease = Duration::try_from_secs_f64(config.lease_s)
         .ok()
@@ -63,15 +83,13 @@ pub async fn start(config: &Config) -> Result<Server> {
         tokens: Arc::new(tokens),
         metrics: Arc::new(api::metrics::Metrics::default()),
         max_body_bytes: config.max_body_bytes,
-        body_timeout: std::time::Duration::try_from_secs_f64(config.body_timeout_s)
-            .ok()
-            .filter(|d| !d.is_zero())
-            .ok_or_else(|| {
-                anyhow::anyhow!(
-                    "--body-timeout-s must be a positive number of seconds, got {}",
-                    config.body_timeout_s
-                )
-            })?,
+        body_timeout,
+        body_budget: Arc::new(api::admission::BodyBudget::new(
+            inflight,
+            config.max_body_bytes as u64,
+            body_timeout,
+        )),
+        limits,
     };
     state.jobs.serve(api::jobs::runners(&state));
     let app = api::router(state.clone());

@@ -140,6 +140,9 @@ async fn get_compensation(
     let nv2: Option<usize> = parse(&q, "nv", "a whole number of points (2..2000)")?;
     let cl: bool = parse(&q, "cl", "true or false")?.unwrap_or(false);
     let radius: Option<f64> = parse(&q, "tool_radius", "a tool radius in mm")?;
+    if let Some(r) = radius {
+        super::ranges::check_tool_radius("query parameter tool_radius", r)?;
+    }
     if nu2.is_some() != nv2.is_some() {
         return Err(ApiError::bad_request(
             "give both nu and nv (the resampling density) or neither",

@@ -41,6 +41,8 @@ pub enum ApiError {
         /// Seconds the client should wait before retrying (the `Retry-After` header).
         retry_after_s: u64,
     },
+    /// 507: the storage refused a write (full, read-only, forbidden); says what to free or fix.
+    InsufficientStorage(String),
     /// 500: a bug or an infrastructure failure; the cause is logged, never shown.
     Internal(String),
 }
@@ -111,6 +113,7 @@ impl ApiError {
             ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::Unprocessable(_) => StatusCode::UNPROCESSABLE_ENTITY,
             ApiError::Unavailable { .. } => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::InsufficientStorage(_) => StatusCode::INSUFFICIENT_STORAGE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
     }
@@ -127,7 +130,8 @@ impl ApiError {
             | ApiError::Conflict(d)
             | ApiError::PayloadTooLarge(d)
             | ApiError::UnsupportedMediaType(d)
-            | ApiError::Unprocessable(d) => d,
+            | ApiError::Unprocessable(d)
+            | ApiError::InsufficientStorage(d) => d,
             ApiError::Unavailable { detail, .. } => detail,
             ApiError::Internal(_) => {
                 "the server failed to handle this request; the cause is in its log"
@@ -150,6 +154,7 @@ fn slug(status: StatusCode) -> &'static str {
         415 => "unsupported-media-type",
         422 => "unprocessable",
         503 => "unavailable",
+        507 => "insufficient-storage",
         _ => "internal",
     }
 }
@@ -195,9 +200,17 @@ impl IntoResponse for ApiError {
 }
 
 impl From<anyhow::Error> for ApiError {
-    /// Store and infrastructure failures are 500s (`{:#}` keeps the cause chain in the log).
+    /// A write the storage refused (full, read-only, forbidden: `store::storage_failure`)
+    /// is 507 with a sentence; other store and infrastructure failures are 500s (`{:#}`
+    /// keeps the cause chain in the log).
     fn from(err: anyhow::Error) -> Self {
-        ApiError::Internal(format!("{err:#}"))
+        match crate::store::storage_failure(&err) {
+            Some(failure) => {
+                tracing::error!(cause = %format!("{err:#}"), "storage refused a write");
+                ApiError::InsufficientStorage(failure.to_string())
+            }
+            None => ApiError::Internal(format!("{err:#}")),
+        }
     }
 }
 
@@ -221,7 +234,7 @@ impl From<jobs::Error> for ApiError {
                 ApiError::unavailable(e.to_string(), jobs::RETRY_AFTER_S)
             }
             jobs::Error::Worker(cause) => ApiError::Internal(cause),
-            jobs::Error::Store(err) => ApiError::Internal(format!("{err:#}")),
+            jobs::Error::Store(err) => err.into(),
         }
     }
 }

@@ -51,7 +51,33 @@ pub fn is_csv_body(headers: &HeaderMap, what: &str) -> ApiResult<bool> {
 }
 
 /// Reads the whole body, mapping the body-limit rejection to 413 and any other read error to 400.
+/// A body with a Content-Length (already checked against the limit by
+/// `middleware::content_length_limit`) is read into one buffer of that size, so a large
+/// upload is held once, not as chunks plus a contiguous copy (BENCHMARKS.md, "Concurrent
+/// uploads").
 pub async fn read_body(req: Request) -> ApiResult<Bytes> {
+    use futures::StreamExt;
+    let declared = req
+        .headers()
+        .get(header::CONTENT_LENGTH)
+        .and_then(|v| v.to_str().ok())
+        .and_then(|v| v.trim().parse::<usize>().ok());
+    if let Some(len) = declared {
+        let mut buf = bytes::BytesMut::with_capacity(len);
+        let mut chunks = req.into_body().into_data_stream();
+        while let Some(chunk) = chunks.next().await {
+            let chunk = chunk.map_err(|e| {
+                ApiError::bad_request(format!("could not read the request body: {e}"))
+            })?;
+            if buf.len() + chunk.len() > len {
+                return Err(ApiError::bad_request(format!(
+                    "the request body is longer than its Content-Length ({len} bytes)"
+                )));
+            }
+            buf.extend_from_slice(&chunk);
+        }
+        return Ok(buf.freeze());
+    }
     Bytes::from_request(req, &()).await.map_err(|rej| {
         if rej.status() == StatusCode::PAYLOAD_TOO_LARGE {
             ApiError::payload_too_large(

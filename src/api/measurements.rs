@@ -15,7 +15,7 @@ use super::auth::{RequireAdmin, RequireWrite};
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, is_csv_body, read_body};
 use super::lookup::{require_measurement, require_surface};
-use super::upload::{ProbeData, deviations_along_normals, parse_csv_upload, parse_json_upload};
+use super::upload::{ProbeData, parse_csv_upload, parse_json_upload};
 use crate::api::id::{Id, PathIds};
 use crate::signal::flyers::{FlyerParams, suspects};
 use crate::store::Measurement;
@@ -68,7 +68,8 @@ async fn post_measurement(
         None => Id::parse("measurement", &uuid::Uuid::now_v7().to_string())?,
     };
     let surf = require_surface(&state, &machine, &surface).await?;
-    let n = surf.nu * surf.nv;
+    let (nu, nv) = (surf.nu, surf.nv);
+    let n = nu * nv;
     if data.len() != n {
         return Err(ApiError::bad_request(format!(
             "{} has {} entries but surface '{surface}' has {n} grid points (nu*nv = {}*{}); \
@@ -88,13 +89,20 @@ async fn post_measurement(
             "measurement '{id}' already exists on surface '{surface}'; choose another id or DELETE it first"
         )));
     }
-    let (deviations, points) = match data {
-        ProbeData::Deviations(d) => (d, None),
-        ProbeData::Points(p) => (
-            deviations_along_normals(&p, &surf.points, &surf.normals),
-            Some(p),
-        ),
-    };
+    let limits = state.limits;
+    let (deviations, points) = tokio::task::spawn_blocking(move || match data {
+        ProbeData::Deviations(d) => limits
+            .check_deviations("deviations", &d)
+            .map(|()| (d, None)),
+        ProbeData::Points(p) => {
+            super::ranges::check_coords("points", &p)?;
+            limits
+                .pair_points(&p, &surf.points, &surf.normals, surf.nu)
+                .map(|d| (d, Some(p)))
+        }
+    })
+    .await
+    .map_err(ApiError::internal)??;
     let m = Measurement::new(
         id.to_string(),
         machine.to_string(),
@@ -102,7 +110,6 @@ async fn post_measurement(
         deviations,
         points,
     );
-    let (nu, nv) = (surf.nu, surf.nv);
     let devs = m.deviations.clone();
     // Like the parse above, a short blocking task rather than a worker-pool slot: an upload
     // is never turned away because decompositions fill the pool.

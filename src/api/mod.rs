@@ -5,6 +5,7 @@
 //! (request id, tracing, metrics, body limit, problem+json, auth). The openapi test reads
 //! the `.route("...")` literals of `src/api/*.rs` and compares them with `openapi.yaml`.
 
+pub mod admission;
 pub mod auth;
 pub mod compensated;
 pub mod compensation;
@@ -25,6 +26,7 @@ pub mod measurements;
 pub mod metrics;
 pub mod middleware;
 pub mod model_versions;
+pub mod ranges;
 pub mod step_error;
 pub mod surfaces;
 pub mod upload;
@@ -60,6 +62,10 @@ pub struct AppState {
     pub max_body_bytes: usize,
     /// How long a request body may take to arrive after its headers (then 408).
     pub body_timeout: std::time::Duration,
+    /// Request-body bytes the process holds at once (`--max-inflight-body-mb`).
+    pub body_budget: Arc<admission::BodyBudget>,
+    /// Plausibility limits of measured values (`--max-deviation-mm`, `--max-tangential-mm`).
+    pub limits: ranges::Limits,
 }
 
 /// The whole HTTP API: every resource's `routes()` plus the cross-cutting layers.
@@ -90,6 +96,21 @@ pub fn router(state: AppState) -> Router {
             auth::authenticate,
         ))
         .layer(axum::middleware::from_fn(middleware::problem_json))
+        // The body's deadline starts once the request is admitted (below), so time spent
+        // waiting for room is not charged to the client.
+        .layer(axum::middleware::from_fn_with_state(
+            state.body_timeout,
+            middleware::body_deadline,
+        ))
+        // Before any body is read: room on the worker pool, then room for the body.
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            admission::body_budget,
+        ))
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            admission::shed_when_full,
+        ))
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
             metrics::track,
@@ -97,10 +118,6 @@ pub fn router(state: AppState) -> Router {
         .layer(axum::middleware::from_fn_with_state(
             max_body,
             middleware::content_length_limit,
-        ))
-        .layer(axum::middleware::from_fn_with_state(
-            state.body_timeout,
-            middleware::body_deadline,
         ))
         .layer(DefaultBodyLimit::max(max_body))
         .layer(CompressionLayer::new())

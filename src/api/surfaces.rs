@@ -89,11 +89,7 @@ pub fn parse_surface(machine: &str, surface: &str, body: &[u8]) -> ApiResult<(Su
         Some(raw) => {
             let r: f64 = serde_json::from_str(raw)
                 .map_err(|_| ApiError::bad_request("tool_radius must be a number (mm)"))?;
-            if !(r.is_finite() && r > 0.0) {
-                return Err(ApiError::bad_request(format!(
-                    "tool_radius must be a positive number of mm, got {r}"
-                )));
-            }
+            super::ranges::check_tool_radius("tool_radius", r)?;
             Some(r)
         }
     };
@@ -120,6 +116,7 @@ pub fn parse_surface(machine: &str, surface: &str, body: &[u8]) -> ApiResult<(Su
         .checked_mul(nv)
         .ok_or_else(|| ApiError::bad_request("nominal.grid.nu*nv is too large"))?;
     check_points("nominal.grid.points", &points)?;
+    super::ranges::check_coords("nominal.grid.points", &points)?;
     check_len("nominal.grid.points", points.len(), n)
         .map_err(|e| ApiError::bad_request(format!("{} (nu*nv = {nu}*{nv})", e.detail())))?;
     check_points("nominal.grid.normals", &normals)?;

@@ -230,13 +230,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             )?;
             let (features, r_model) = model_features(&reg)?;
             let r = f.tool_radius.unwrap_or(r_model);
-            let (um, _) = predict_um(
+            let p = predict_um(
                 &reg,
                 &features,
                 r,
                 f.segments.iter().map(|s| (s.cl, &s.cc[..])),
             )?;
-            let e: Vec<f64> = um.into_iter().map(|v| v / 1000.0).collect();
+            let e: Vec<f64> = p.um.into_iter().map(|v| v / 1000.0).collect();
             println!("{}", serde_json::json!({"step_errors": e, "unit": "mm"}));
         }
         StepCommand::Transfer {

@@ -16,7 +16,7 @@ pub use paths::{
 };
 pub use spline::{CubicSpline3, Parameterization};
 pub use step_error::{
-    SegmentRef, StepError, StepErrorSegment, StepErrorSolver, step_error, step_errors,
-    step_errors_split,
+    SegmentRef, StepError, StepErrorSegment, StepErrorSolver, check_segment, step_error,
+    step_errors, step_errors_split,
 };
 pub use step_features::{FeatureFrame, PROFILE_FLOOR_UM, RowInfo, StepFeatures, StepInputs};

@@ -251,6 +251,22 @@ impl JobPool {
             })
     }
 
+    /// Whether new work would be admitted now, without taking a slot: [`Error::Full`] (counted
+    /// as a rejection) or [`Error::ShuttingDown`] when not. Lets a caller turn a request away
+    /// before reading its body; the later [`JobPool::run`] or [`JobPool::submit`] still decides.
+    pub fn check_room(&self) -> Result<(), Error> {
+        if self.inner.admission.is_closed() {
+            return Err(Error::ShuttingDown);
+        }
+        if self.inner.admission.available_permits() == 0 {
+            self.inner.rejected.fetch_add(1, Ordering::Relaxed);
+            return Err(Error::Full {
+                workers: self.inner.worker_count,
+            });
+        }
+        Ok(())
+    }
+
     /// Runs CPU-heavy work synchronously for a request; [`Error::Full`] (503 + Retry-After)
     /// when the pool is full. A panic in `f` becomes [`Error::Worker`] (a 500).
     pub async fn run<T: Send + 'static>(

@@ -16,5 +16,5 @@ mod tests;
 
 pub use batch::{SegmentBatch, SegmentsBody, solve_batch};
 pub use error::{Error, Result};
-pub use model::{META_VERSION, MODEL_KIND, ModelMeta, model_features, predict_um};
+pub use model::{META_VERSION, MODEL_KIND, ModelMeta, Prediction, model_features, predict_um};
 pub use train::TrainJob;

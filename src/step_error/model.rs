@@ -73,19 +73,36 @@ pub fn model_features(reg: &Regressor) -> Result<(StepFeatures, f64)> {
     Ok((meta.features, meta.tool_radius_mm))
 }
 
+/// What [`predict_um`] answers.
+#[derive(Clone, Debug)]
+pub struct Prediction {
+    /// Predicted step error per segment, µm.
+    pub um: Vec<f64>,
+    /// With profile inputs, the m samples' own estimate per segment (µm,
+    /// [`StepFeatures::knot_estimate`]), to show what the network adds.
+    pub knot_um: Option<Vec<f64>>,
+    /// The network's input rows (row-major, `f.len()` columns), e.g. to tell which segments
+    /// lie outside the trained range.
+    pub inputs: Vec<f64>,
+}
+
 /// Step errors (µm) of `segments` (CL points, CC points) predicted by the network `reg` reading
 /// features `f` with ball radius `tool_radius_mm`: the feature rows, the network on all cores,
 /// then [`StepFeatures::combine`]. Also the m samples' own estimate (µm,
-/// [`StepFeatures::knot_estimate`]) with profile inputs, to show what the network adds.
+/// [`StepFeatures::knot_estimate`]) with profile inputs, and the input rows.
 /// Errors name the first bad segment.
 pub fn predict_um<'a>(
     reg: &Regressor,
     f: &StepFeatures,
     tool_radius_mm: f64,
     segments: impl ExactSizeIterator<Item = ([[f64; 3]; 2], &'a [[f64; 3]])>,
-) -> Result<(Vec<f64>, Option<Vec<f64>>)> {
+) -> Result<Prediction> {
     let (x, info) = f.matrix(tool_radius_mm, segments)?;
     let y = reg.predict_parallel(&x, 0)?;
-    let knot = (f.inputs == StepInputs::Profile).then(|| StepFeatures::knot_estimate(&info));
-    Ok((f.combine(&y, &info), knot))
+    let knot_um = (f.inputs == StepInputs::Profile).then(|| StepFeatures::knot_estimate(&info));
+    Ok(Prediction {
+        um: f.combine(&y, &info),
+        knot_um,
+        inputs: x,
+    })
 }

@@ -104,7 +104,7 @@ fn a_version_1_model_loads_with_its_coordinates_and_a_newer_one_is_refused() {
         segs.iter().map(|s| (s.cl, &s.cc[..])),
     )
     .unwrap()
-    .0;
+    .um;
     // What a version-1 file holds: no "version", no "features.inputs".
     let mut meta: serde_json::Value = serde_json::from_str(&reg.metadata).unwrap();
     meta.as_object_mut().unwrap().remove("version");
@@ -120,7 +120,7 @@ fn a_version_1_model_loads_with_its_coordinates_and_a_newer_one_is_refused() {
         segs.iter().map(|s| (s.cl, &s.cc[..])),
     )
     .unwrap()
-    .0;
+    .um;
     assert_eq!(before, after);
     // A newer file is refused with a sentence that says what to do.
     meta["version"] = serde_json::json!(META_VERSION + 1);

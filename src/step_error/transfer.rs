@@ -246,7 +246,8 @@ fn score(
         }
     };
     let segs = idx.iter().map(|&i| (s.segs[i].cl, &s.segs[i].cc[..]));
-    let (pred, knot) = predict_um(reg, f, s.surface.tool_radius_mm, segs)?;
+    let p = predict_um(reg, f, s.surface.tool_radius_mm, segs)?;
+    let (pred, knot) = (p.um, p.knot_um);
     let truth: Vec<f64> = idx.iter().map(|&i| s.y_um[i]).collect();
     let (max, mean) = abs_errors(&pred, &truth);
     let (kmax, kmean) = knot.map_or((f64::NAN, f64::NAN), |k| abs_errors(&k, &truth));

@@ -18,6 +18,7 @@ mod machines;
 mod measurements;
 mod model_versions;
 mod models;
+mod storage;
 mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
@@ -29,4 +30,8 @@ pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};
 pub use model_versions::{ModelVersion, ModelVersions, Rollback};
 pub use models::{JobDone, MODEL_FORMAT_VERSION, ModelStore, VERSIONS_KEPT, is_valid_id};
+pub use storage::{
+    StorageFailure, StorageState, check_data_dir, free_bytes, probe_writable, state_of,
+    storage_failure,
+};
 pub use surfaces::{Surface, SurfaceSummary};

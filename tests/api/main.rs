@@ -15,6 +15,7 @@ mod crash;
 mod dashboard;
 mod decomposition;
 mod gap;
+mod hardening;
 mod instances;
 mod iso230;
 mod jobs_cancel;

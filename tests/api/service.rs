@@ -157,6 +157,11 @@ async fn health_metrics_request_id(app: TestApp) {
         app.server().state().store.instance(),
         "the instance id names this process (the `instance` of its jobs)"
     );
+    assert_eq!(health["storage"]["writable"], true, "{health}");
+    assert!(
+        health["storage"]["free_bytes"].as_u64().unwrap() > 0,
+        "{health}"
+    );
     // A caller's request id is kept.
     let r = app
         .client

@@ -16,13 +16,7 @@ use crate::geometry::StepError;
 use crate::step_error::{SegmentsBody, solve_batch};
 
 pub(super) fn check_tool_radius(r: f64) -> ApiResult<()> {
-    if r.is_finite() && r > 0.0 && r < 1000.0 {
-        Ok(())
-    } else {
-        Err(ApiError::bad_request(format!(
-            "tool_radius must be the ball radius in mm, a finite number in (0, 1000), got {r}"
-        )))
-    }
+    crate::api::ranges::check_tool_radius("tool_radius", r)
 }
 
 fn require_json(headers: &HeaderMap) -> ApiResult<()> {
@@ -55,6 +49,19 @@ fn check_segments(req: SegmentsBody) -> ApiResult<SegmentsBody> {
         return Err(ApiError::bad_request(
             "segments is empty: send at least one {\"cl\": [...], \"cc\": [...]}",
         ));
+    }
+    let out_of_range = |p: &[[f64; 3]]| {
+        p.iter()
+            .flatten()
+            .any(|c| c.is_finite() && c.abs() > crate::api::ranges::COORD_LIMIT_MM)
+    };
+    if let Some((i, (cl, cc))) = req
+        .iter()
+        .enumerate()
+        .find(|(_, (cl, cc))| out_of_range(cl) || out_of_range(cc))
+    {
+        crate::api::ranges::check_coords(&format!("segments[{i}].cl"), &cl)?;
+        crate::api::ranges::check_coords(&format!("segments[{i}].cc"), cc)?;
     }
     Ok(req)
 }

@@ -21,7 +21,7 @@ use crate::api::extract::{ApiJson, decode_json, is_json, read_body};
 use crate::api::id::{Id, PathIds};
 use crate::api::lookup::{require_machine, require_surface};
 use crate::api::model_versions::{self as versions, ModelRef, RollbackRequest};
-use crate::geometry::{StepErrorSegment, StepFeatures, grid_segments};
+use crate::geometry::{self, StepErrorSegment, StepFeatures, grid_segments};
 use crate::jobs::{Progress, Runner};
 use crate::nn::{self, Init, Regressor, TrainConfig};
 use crate::step_error::{MODEL_KIND, ModelMeta, SegmentBatch, TrainJob, predict_um};
@@ -411,6 +411,41 @@ struct PredictAnswer<'a> {
     tool_radius: f64,
     unit: &'static str,
     model: &'static str,
+    warnings: Vec<String>,
+}
+
+/// Standard deviations from the training mean beyond which a feature is called outside the
+/// trained range (a z-score of 4 is outside 99.99 % of a normal sample).
+pub const TRAINED_RANGE_Z: f64 = 4.0;
+
+/// A warning naming the segments (first few) with a feature more than [`TRAINED_RANGE_Z`]
+/// training standard deviations from the training mean: there the network extrapolates.
+/// The model file keeps the z-score scaler of its inputs, not their extremes.
+fn outside_training(x: &[f64], scaler: &crate::nn::ZScore) -> Vec<String> {
+    let cols = scaler.cols().max(1);
+    let outside: Vec<usize> = x
+        .chunks_exact(cols)
+        .enumerate()
+        .filter(|(_, row)| {
+            row.iter()
+                .zip(scaler.mean.iter().zip(&scaler.std))
+                .any(|(v, (m, s))| ((v - m) / s).abs() > TRAINED_RANGE_Z)
+        })
+        .map(|(i, _)| i)
+        .collect();
+    if outside.is_empty() {
+        return Vec::new();
+    }
+    let shown: Vec<String> = outside.iter().take(10).map(|i| i.to_string()).collect();
+    vec![format!(
+        "{} segment(s) lie outside the range the network was trained on (a feature more than \
+         {TRAINED_RANGE_Z} standard deviations from its training mean): segments {}{}. Their \
+         predictions are extrapolations; compute them with POST /v1/step-error or train on \
+         such segments",
+        outside.len(),
+        shown.join(", "),
+        if outside.len() > 10 { ", ..." } else { "" }
+    )]
 }
 
 pub(super) async fn predict(
@@ -428,13 +463,22 @@ pub(super) async fn predict(
             let req = decode_segments(&headers, &body)?;
             let r = req.tool_radius.unwrap_or(meta.tool_radius_mm);
             let batch = SegmentBatch::concat(req.parts);
-            let (um, _) = predict_um(&reg, &meta.features, r, batch.iter())?;
-            let e: Vec<f64> = um.into_iter().map(|v| v / 1000.0).collect();
+            // The exact route's per-segment check, so both take the same geometry.
+            for (index, (cl, cc)) in batch.iter().enumerate() {
+                geometry::check_segment(r, cl, cc).map_err(|e| geometry::Error::InSegment {
+                    index,
+                    source: Box::new(e),
+                })?;
+            }
+            let p = predict_um(&reg, &meta.features, r, batch.iter())?;
+            let warnings = outside_training(&p.inputs, reg.x_scaler());
+            let e: Vec<f64> = p.um.into_iter().map(|v| v / 1000.0).collect();
             serde_json::to_vec(&PredictAnswer {
                 step_errors: &e,
                 tool_radius: r,
                 unit: "mm",
                 model: MODEL_KIND,
+                warnings,
             })
             .map_err(ApiError::internal)
         })

@@ -105,6 +105,8 @@ pub(super) async fn put_map(
             data.nodes.len()
         )));
     }
+    crate::api::ranges::check_coords("nodes", &data.nodes)?;
+    crate::api::ranges::check_volumetric_errors("errors", &data.errors)?;
     let options = fit_options(&request)?;
     if let Some(e) = request.epochs
         && e.saturating_mul(data.nodes.len()) > MAX_SAMPLE_PASSES
@@ -226,6 +228,7 @@ pub(super) async fn predict(
     ApiJson(req): ApiJson<PredictRequest>,
 ) -> ApiResult<ApiJson<PredictResponse>> {
     check_points("points", &req.points)?;
+    crate::api::ranges::check_coords("points", &req.points)?;
     if req.points.len() > MAX_POINTS {
         return Err(ApiError::payload_too_large(format!(
             "{} points: at most {MAX_POINTS} per request; split them",
