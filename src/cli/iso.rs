@@ -104,8 +104,11 @@ fn parse_pair(s: &str) -> Result<[f64; 2], String> {
     }
 }
 
+/// CSV rows as (1-based line number, fields).
+type CsvRows = Vec<(usize, Vec<String>)>;
+
 /// A CSV as column names (lower case, unit suffixes removed) and rows of fields.
-fn read_csv(path: &Path) -> anyhow::Result<(Vec<String>, Vec<(usize, Vec<String>)>)> {
+fn read_csv(path: &Path) -> anyhow::Result<(Vec<String>, CsvRows)> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
     let mut lines = text

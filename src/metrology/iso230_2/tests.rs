@@ -29,7 +29,8 @@ pub(crate) fn hand_table() -> PositionTable {
         ([2., 4., 3., 4., 2.], [-1., 3., 1., -1., 3.]),
     ];
     let targets: Vec<f64> = (0..5).map(|i| 100.0 * i as f64).collect();
-    let rows = |f: fn(&([f64; 5], [f64; 5])) -> [f64; 5]| {
+    type Pick = fn(&([f64; 5], [f64; 5])) -> [f64; 5];
+    let rows = |f: Pick| {
         um.iter()
             .zip(&targets)
             .map(|(r, &p)| f(r).iter().map(|d| p + d * 1e-3).collect())
