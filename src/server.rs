@@ -143,8 +143,18 @@ impl Server {
                 "background jobs did not finish within the grace period; recorded as failed"
             );
         }
+        self.state.jobs.release_runners();
         self.state.store.close().await;
         tracing::info!("truecut stopped");
         Ok(())
+    }
+}
+
+impl Drop for Server {
+    /// A server dropped without [`Server::stop`] (a test that ends) lets go of its stored-job
+    /// runners, which hold its state: otherwise the state, and the database pool with its
+    /// open connections, would outlive it.
+    fn drop(&mut self) {
+        self.state.jobs.release_runners();
     }
 }

@@ -466,6 +466,9 @@ pub fn run_4(args: Args4) -> anyhow::Result<()> {
     let a: Iso2304Answer =
         serde_json::from_value(answer).context("the server's answer is not an ISO 230-4 answer")?;
     let um = |v: f64| v * 1e3;
+    // Rounded to the printed nm, then + 0.0 so a centre of -1e-12 mm prints 0.000000, not
+    // -0.000000 (the same circle evaluated here and on the server then reads the same).
+    let nm = |v: f64| (v * 1e6).round() / 1e6 + 0.0;
     let mut s = format!(
         "{} ({} points), µm\nG {:8.2}  F_max {:8.2}  F_min {:8.2}\ncentre {:.6}, {:.6} mm  radius_fit {:.6} mm\n",
         a.standard,
@@ -473,8 +476,8 @@ pub fn run_4(args: Args4) -> anyhow::Result<()> {
         um(a.G),
         um(a.F_max),
         um(a.F_min),
-        a.centre[0],
-        a.centre[1],
+        nm(a.centre[0]),
+        nm(a.centre[1]),
         a.radius_fit
     );
     if let (Some(r), Some(h)) = (&a.reverse, a.H) {

@@ -66,11 +66,24 @@ pub(super) struct Inner {
     pub(super) idle: Notify,
     /// Wakes the claim loop when a job is queued through this instance.
     pub(super) work: Notify,
-    pub(super) runners: std::sync::OnceLock<HashMap<String, Runner>>,
+    /// The runners of the stored job kinds ([`JobPool::serve`]). They capture the service's
+    /// state, which holds this pool: [`JobPool::release_runners`] breaks that cycle when the
+    /// server is stopped or dropped, so the database pool closes its connections.
+    pub(super) runners: Mutex<Option<Arc<HashMap<String, Runner>>>>,
     pub(super) queue: usize,
     pub(super) lease: Duration,
     pub(super) claim_loop: Mutex<Option<JoinHandle<()>>>,
     pub(super) heartbeat: Mutex<Option<JoinHandle<()>>>,
+}
+
+impl Inner {
+    /// The runners, while the pool serves stored jobs.
+    pub(super) fn runners(&self) -> Option<Arc<HashMap<String, Runner>>> {
+        self.runners
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .clone()
+    }
 }
 
 /// The worker pool. Cheap to clone.
@@ -176,7 +189,7 @@ impl JobPool {
                 live: Mutex::new(HashMap::new()),
                 idle: Notify::new(),
                 work: Notify::new(),
-                runners: std::sync::OnceLock::new(),
+                runners: Mutex::new(None),
                 queue,
                 lease,
                 claim_loop: Mutex::new(None),
@@ -188,9 +201,13 @@ impl JobPool {
     /// Starts taking stored jobs of the kinds in `runners` from the queue (shared by every
     /// instance on the database) whenever a worker is free. Call once.
     pub fn serve(&self, runners: HashMap<String, Runner>) {
-        if self.inner.runners.set(runners).is_err() {
-            tracing::error!("JobPool::serve called twice; the first runners stay");
-            return;
+        {
+            let mut slot = self.inner.runners.lock().unwrap_or_else(|p| p.into_inner());
+            if slot.is_some() {
+                tracing::error!("JobPool::serve called twice; the first runners stay");
+                return;
+            }
+            *slot = Some(Arc::new(runners));
         }
         let task = tokio::spawn(claim_loop(self.inner.clone()));
         *self
@@ -205,6 +222,18 @@ impl JobPool {
         self.inner.lease
     }
 
+    /// Forgets the runners [`JobPool::serve`] was given (no stored job is claimed after
+    /// this). They hold the service's state, which holds this pool: a server calls this when
+    /// it stops or is dropped, so nothing keeps the database pool (and its connections) alive.
+    pub fn release_runners(&self) {
+        self.inner
+            .runners
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take();
+        self.inner.work.notify_waiters();
+    }
+
     /// Queues a stored job: `kind` names its [`Runner`], `input` is the JSON it reads. Any
     /// instance serving that kind may run it (answer `202 {"job": id}`). [`Error::Full`]
     /// (503 + Retry-After) when more jobs wait than the queue holds beyond this instance's
@@ -213,12 +242,7 @@ impl JobPool {
         if self.inner.admission.is_closed() {
             return Err(Error::ShuttingDown);
         }
-        if !self
-            .inner
-            .runners
-            .get()
-            .is_some_and(|r| r.contains_key(kind))
-        {
+        if !self.inner.runners().is_some_and(|r| r.contains_key(kind)) {
             return Err(Error::Worker(format!("no runner for job kind '{kind}'")));
         }
         let waiting = self.inner.store.count_queued_jobs().await?;

@@ -53,11 +53,14 @@ pub(super) async fn finish(
 /// under its admission cap), waking when a job is queued here or every [`CLAIM_POLL`].
 pub(super) async fn claim_loop(inner: Arc<Inner>) {
     let kinds: Vec<String> = inner
-        .runners
-        .get()
+        .runners()
         .map(|r| r.keys().cloned().collect())
         .unwrap_or_default();
     loop {
+        // Runners released (the server stopped or was dropped): claim nothing more.
+        if inner.runners().is_none() {
+            return;
+        }
         // Claim only when a worker looks free, without holding a permit while asking the
         // database (a held permit would turn synchronous requests away).
         if inner.admission.is_closed() {
@@ -99,7 +102,7 @@ async fn run_claimed(
         .lock()
         .unwrap_or_else(|p| p.into_inner())
         .insert(job.id.clone(), progress.clone());
-    let runner = inner.runners.get().and_then(|r| r.get(&job.kind)).cloned();
+    let runner = inner.runners().and_then(|r| r.get(&job.kind).cloned());
     let p = progress.clone();
     let inner2 = inner.clone();
     let kind = job.kind.clone();

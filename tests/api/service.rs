@@ -356,7 +356,8 @@ async fn binary_serves_demo_and_exits_0_on_sigterm() {
         .json()
         .await
         .unwrap();
-    assert_eq!(list["machines"].as_array().unwrap().len(), 1);
+    // `demo` and `demo-vmc` (with its volumetric map), once each.
+    assert_eq!(list["machines"].as_array().unwrap().len(), 2, "{list}");
     let _ = Command::new("kill")
         .args(["-INT", &child.id().to_string()])
         .status();

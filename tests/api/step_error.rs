@@ -306,7 +306,9 @@ async fn train_predict_and_fine_tune(app: TestApp) {
         .json()
         .await
         .unwrap();
-    assert_eq!(info["layers"], json!([67, 28, 20, 2]));
+    // The default inputs (model version 2): the distance profile at 20 points plus 2, then the
+    // hidden layers 28 and 20, two outputs (was 67 local-frame coordinate inputs).
+    assert_eq!(info["layers"], json!([22, 28, 20, 2]));
     // Prediction vs exact on the training surface.
     let r = app
         .post_json(
