@@ -40,6 +40,14 @@ pub async fn evaluate_2(
     state: &AppState,
     req: Iso2302Request,
 ) -> ApiResult<(Iso2302Answer, PositionTable)> {
+    use super::ranges::check_lengths;
+    check_lengths("targets", req.targets.iter().flatten())?;
+    check_lengths("forward", req.forward.iter().flatten().flatten())?;
+    check_lengths("backward", req.backward.iter().flatten().flatten())?;
+    if let Some(t) = &req.trace {
+        check_lengths("trace.commanded", &t.commanded)?;
+        check_lengths("trace.measured", &t.measured)?;
+    }
     match (req.targets, req.forward, req.backward, req.trace) {
         (Some(targets), Some(forward), Some(backward), None) => {
             let table = PositionTable {
@@ -97,10 +105,30 @@ async fn iso230_2(
     Ok(ApiJson(evaluate_2(&state, req).await?.0))
 }
 
+/// Refuses circle points and a centre outside ±100 m and a nominal radius outside
+/// (0, 100 m], naming the field: beyond them the figures overflow.
+fn check_circle(req: &Iso2304Request) -> ApiResult<()> {
+    use super::ranges::{COORD_LIMIT_MM, check_lengths};
+    check_lengths("points", req.points.iter().flatten())?;
+    check_lengths(
+        "reverse_points",
+        req.reverse_points.iter().flatten().flatten(),
+    )?;
+    check_lengths("centre", req.centre.iter().flatten())?;
+    if req.radius.is_finite() && !(req.radius > 0.0 && req.radius <= COORD_LIMIT_MM) {
+        return Err(ApiError::bad_request(format!(
+            "radius is {}; the nominal radius must be a number of mm in (0, {COORD_LIMIT_MM}]",
+            req.radius
+        )));
+    }
+    Ok(())
+}
+
 async fn iso230_4(
     State(state): State<AppState>,
     ApiJson(req): ApiJson<Iso2304Request>,
 ) -> ApiResult<ApiJson<Iso2304Answer>> {
+    check_circle(&req)?;
     let answer = state
         .jobs
         .run(move || -> Result<Iso2304Answer, metrology::Error> {
@@ -116,6 +144,18 @@ async fn iso230_4(
             }
         })
         .await??;
+    let figures = [answer.G, answer.F_max, answer.F_min, answer.radius_fit];
+    if !figures
+        .iter()
+        .chain(&answer.centre)
+        .chain(&answer.radial_deviation)
+        .all(|v| v.is_finite())
+    {
+        return Err(ApiError::unprocessable(
+            "these points do not determine a circle (its figures are not finite numbers): send \
+             points spread around the circle, in mm",
+        ));
+    }
     Ok(ApiJson(answer))
 }
 
@@ -247,6 +287,12 @@ fn ballbar_points(
         .collect())
 }
 
+/// Largest radius of a generated circular test, mm (a ballbar's longest extension is about
+/// 600 mm; a machine's circle interpolation test rarely exceeds a few metres).
+const MAX_SIM_RADIUS_MM: f64 = 5_000.0;
+/// Largest feed of a generated circular test, mm/min.
+const MAX_SIM_FEED_MM_MIN: f64 = 200_000.0;
+
 fn thin(points: &[[f64; 2]], dev: &[f64]) -> (Vec<[f64; 2]>, Vec<f64>) {
     let step = points.len().div_ceil(3600).max(1);
     (
@@ -267,18 +313,21 @@ async fn simulate(
     let centre = req.centre.unwrap_or([0.0, 0.0]);
     let feed = req.feed.unwrap_or(1000.0);
     let z = req.z.unwrap_or(0.0);
-    if !(req.radius.is_finite() && req.radius > 0.0) {
-        return Err(ApiError::bad_request(
-            "radius must be a finite number > 0 mm",
-        ));
+    if !(req.radius.is_finite() && req.radius > 0.0 && req.radius <= MAX_SIM_RADIUS_MM) {
+        return Err(ApiError::bad_request(format!(
+            "radius is {}; a simulated circular test takes a radius in (0, {MAX_SIM_RADIUS_MM}] mm",
+            req.radius
+        )));
     }
+    super::ranges::check_lengths("centre", &centre)?;
+    super::ranges::check_lengths("z", [&z])?;
     if !(centre.iter().all(|v| v.is_finite()) && z.is_finite()) {
         return Err(ApiError::bad_request("centre and z must be finite mm"));
     }
-    if !(feed.is_finite() && feed > 0.0) {
-        return Err(ApiError::bad_request(
-            "feed must be a finite number > 0 mm/min",
-        ));
+    if !(feed.is_finite() && feed > 0.0 && feed <= MAX_SIM_FEED_MM_MIN) {
+        return Err(ApiError::bad_request(format!(
+            "feed is {feed}; it must be a number of mm/min in (0, {MAX_SIM_FEED_MM_MIN}]"
+        )));
     }
     // (name, program, evaluated line)
     let runs: Vec<(String, String, Option<u32>)> = match &req.gcode {

@@ -243,6 +243,22 @@ pub fn check_coords(field: &str, points: &[[f64; 3]]) -> ApiResult<()> {
     }
 }
 
+/// Refuses a finite length outside ±[`COORD_LIMIT_MM`] (a position, reading or target in
+/// mm), naming `field[i]`.
+pub fn check_lengths<'a>(field: &str, values: impl IntoIterator<Item = &'a f64>) -> ApiResult<()> {
+    match values
+        .into_iter()
+        .enumerate()
+        .find(|(_, v)| v.is_finite() && v.abs() > COORD_LIMIT_MM)
+    {
+        None => Ok(()),
+        Some((i, v)) => Err(ApiError::bad_request(format!(
+            "{field}[{i}] = {v:e} is outside the physical range: positions must lie within \
+             ±{COORD_LIMIT_MM} mm (100 m); check the units (mm)"
+        ))),
+    }
+}
+
 /// Refuses a tool radius outside (0, [`TOOL_RADIUS_MAX_MM`]] mm, naming `field`.
 pub fn check_tool_radius(field: &str, r: f64) -> ApiResult<()> {
     if r.is_finite() && r > 0.0 && r <= TOOL_RADIUS_MAX_MM {

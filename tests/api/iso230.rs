@@ -139,6 +139,25 @@ async fn iso230_2_refusals_and_warnings() {
     let a: Value = r.json().await.unwrap();
     let w = a["warnings"].to_string();
     assert!(w.contains("3 targets") && w.contains("3 cycles"), "{w}");
+    // Beyond the physical range (schemathesis found these answered with null figures).
+    let mut b = hand_body(1.0);
+    b["forward"][2][1] = json!(1.0e16);
+    assert_problem(
+        app.post_json("/v1/iso230-2", &b).await,
+        400,
+        &["forward[11]", "100 m"],
+    )
+    .await;
+    let far = json!({"points": [[0.33, -5.3e16], [-4.2e16, 1.4e276], [5.9e16, -3.7e16]],
+                     "radius": 3.4e38});
+    assert_problem(
+        app.post_json("/v1/iso230-4", &far).await,
+        400,
+        &["points[1]"],
+    )
+    .await;
+    let big = json!({"points": [[1, 0], [0, 1], [-1, 0], [0, -1]], "radius": 3.4e38});
+    assert_problem(app.post_json("/v1/iso230-4", &big).await, 400, &["radius"]).await;
 }
 
 /// A logged run: five targets 0..40 mm, three cycles, 1 s dwells at 100 Hz, a lag that
