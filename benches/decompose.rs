@@ -154,6 +154,8 @@ fn profile(x: &[f64], body: &str, reps: usize) -> Vec<(&'static str, f64)> {
 
 /// Best wall time of `reps` `POST /v1/decompose` round trips with `body`, seconds.
 fn http(rt: &tokio::runtime::Runtime, base: &str, body: &str, reps: usize) -> f64 {
+    // reqwest is built with rustls but no default crypto provider (Cargo.toml).
+    truecut::cli::client::install_crypto_provider();
     let client = reqwest::Client::new();
     let url = format!("{base}/v1/decompose");
     let body = bytes::Bytes::from(body.to_owned());

@@ -275,6 +275,11 @@ impl JobPool {
             })
     }
 
+    /// Whether a slot is free now (nothing counted, nothing taken).
+    pub fn has_room(&self) -> bool {
+        !self.inner.admission.is_closed() && self.inner.admission.available_permits() > 0
+    }
+
     /// Whether new work would be admitted now, without taking a slot: [`Error::Full`] (counted
     /// as a rejection) or [`Error::ShuttingDown`] when not. Lets a caller turn a request away
     /// before reading its body; the later [`JobPool::run`] or [`JobPool::submit`] still decides.

@@ -335,6 +335,7 @@ async fn a_full_disk_answers_507_and_healthz_says_so() {
     config.workers = Some(2);
     let server = truecut::server::start(&config).await.unwrap();
     let base = format!("http://{}", server.addr());
+    truecut::cli::client::install_crypto_provider();
     let client = reqwest::Client::new();
     let r = client
         .put(format!("{base}/v1/machines/m"))

@@ -74,6 +74,7 @@ pub async fn start(
             );
         }
     };
+    truecut::cli::client::install_crypto_provider();
     let client = reqwest::Client::new();
     let base = addr; // "http://127.0.0.1:PORT"
     let health: Value = client
