@@ -115,6 +115,7 @@ async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResul
         ));
     }
     check_finite("signal", &r.signal)?;
+    super::ranges::check_signal_mm("signal", &r.signal)?;
     match run(&state, r.signal, r.method, r.params, Some(&body)).await? {
         Ok(v) => Ok(ApiJson(v).into_response()),
         Err(accepted) => Ok(accepted),

@@ -366,7 +366,7 @@ impl From<signal::Error> for ApiError {
             | E::BadParam { .. }
             | E::UnknownWavelet(_)
             | E::GridMismatch { .. } => ApiError::bad_request(e.to_string()),
-            E::TooShort { .. } => ApiError::unprocessable(e.to_string()),
+            E::TooShort { .. } | E::Overflow { .. } => ApiError::unprocessable(e.to_string()),
         }
     }
 }

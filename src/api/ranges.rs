@@ -259,6 +259,23 @@ pub fn check_lengths<'a>(field: &str, values: impl IntoIterator<Item = &'a f64>)
     }
 }
 
+/// Refuses a finite machining-error sample outside ±[`COORD_LIMIT_MM`] (the stateless
+/// `POST /v1/decompose` signal, mm), naming `field[i]`: beyond 100 m the sample is a wrong
+/// unit, and squares of such numbers overflow the decomposition's energy sums.
+pub fn check_signal_mm(field: &str, values: &[f64]) -> ApiResult<()> {
+    match values
+        .iter()
+        .position(|v| v.is_finite() && v.abs() > COORD_LIMIT_MM)
+    {
+        None => Ok(()),
+        Some(i) => Err(ApiError::bad_request(format!(
+            "{field}[{i}] = {:e} is outside the physical range: a machining error must lie \
+             within ±{COORD_LIMIT_MM} mm (100 m); check the units (mm)",
+            values[i]
+        ))),
+    }
+}
+
 /// Refuses a tool radius outside (0, [`TOOL_RADIUS_MAX_MM`]] mm, naming `field`.
 pub fn check_tool_radius(field: &str, r: f64) -> ApiResult<()> {
     if r.is_finite() && r > 0.0 && r <= TOOL_RADIUS_MAX_MM {

@@ -104,7 +104,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         100.0 * c.shrink,
                         c.program,
                         c.sigma * 1e3,
-                        c.where_ok.map_or("-", |ok| if ok { "ok" } else { "MISS" }),
+                        match (c.where_ok, c.where_strict) {
+                            (None, _) => "-",
+                            (Some(true), Some(true)) => "ok",
+                            (Some(true), _) => "ok (not on a reversal sample)",
+                            (Some(false), _) => "MISS",
+                        },
                         c.where_top
                     );
                 }

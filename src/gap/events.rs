@@ -169,7 +169,14 @@ pub fn axis_events(cmd: &[Vec<f64>], k: usize, name: &str) -> Vec<(usize, String
 /// until the next counts in the span that begins at that reversal, and nowhere after, while a
 /// spike counts where it occurs. `share` is the span's part of the sum of all spans' scores
 /// over all axes; the `max_spans` largest are returned, largest first, each naming its axis.
-/// Bad cases: a gap that grows slowly (drift) is spread over many spans of small share.
+///
+/// Tried and measured on the blind self-check (`truecut gap selfcheck --cases 180`, seeds 1000
+/// and 5000, friction cases whose top span holds a reversal sample): scoring only a settling
+/// window of 4/kv after each event (a step counted once whatever the span's length) gave 11
+/// and 13 of 20 against 13 and 16; subtracting each axis' noise floor σ²·len changed nothing.
+/// Bad cases: a gap that grows slowly (drift) is spread over many spans of small share; at a
+/// reversal through a dwell (a rectangle's corner) friction's stop and restart glitches are
+/// equal, so the stop's span may rank first.
 pub fn rank_spans(
     cmd: &[Vec<f64>],
     residual: &[Vec<f64>],

@@ -146,6 +146,10 @@ pub fn decompose(
         d.random = x.iter().zip(&d.systematic).map(|(a, b)| a - b).collect();
     }
     d.outliers = outliers;
+    if d.systematic.iter().chain(&d.random).any(|v| !v.is_finite()) {
+        let max_abs = x.iter().fold(0.0_f64, |m, v| m.max(v.abs()));
+        return Err(Error::Overflow { max_abs });
+    }
     Ok(d)
 }
 

@@ -29,6 +29,16 @@ pub enum Error {
         /// Its allowed range, as a sentence.
         reason: String,
     },
+    /// The signal's magnitude is beyond what the decomposition's sums of squares can hold
+    /// (a result came out non-finite).
+    #[error(
+        "the decomposition overflowed: the signal's largest |value| is {max_abs:e}; send the \
+         machining error in mm (|value| well below 1e100)"
+    )]
+    Overflow {
+        /// Largest |sample| sent.
+        max_abs: f64,
+    },
     /// An unknown wavelet name.
     #[error("unknown wavelet '{0}'; use db1..db10, haar or sym2..sym10")]
     UnknownWavelet(String),

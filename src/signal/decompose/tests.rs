@@ -100,6 +100,49 @@ fn bad_inputs_are_errors_with_the_field_named() {
     ));
 }
 
+/// Schemathesis found this: samples near f64::MAX made every part NaN, answered as 200 with
+/// nulls. Each method now either answers finite parts or says the signal overflowed.
+#[test]
+fn huge_samples_overflow_as_an_error_not_nan_parts() {
+    let x = [
+        7.1e-297,
+        -2.3e16,
+        6.8e16,
+        -2.7e57,
+        2.4e-240,
+        -1.1e-250,
+        -4.2e16,
+        1e7,
+        8.0e-192,
+        4.1e16,
+        -1.9e79,
+        9.3e-299,
+        5.6e16,
+        -f64::MAX,
+        -5.0e16,
+        -1.1e-10,
+        -1.7976931348623155e308,
+    ];
+    for method in [
+        Method::CoarseToFine,
+        Method::Vmd,
+        Method::Emd,
+        Method::Wavelet,
+    ] {
+        match decompose(&x, method, &DecomposeParams::default()) {
+            Ok(d) => assert!(
+                d.systematic.iter().chain(&d.random).all(|v| v.is_finite()),
+                "{method:?} answered non-finite parts"
+            ),
+            Err(e) => assert!(matches!(e, Error::Overflow { .. }), "{method:?}: {e}"),
+        }
+    }
+    assert!(matches!(
+        decompose(&x, Method::CoarseToFine, &DecomposeParams::default()),
+        Err(Error::Overflow { .. })
+    ));
+}
+
 #[test]
 fn params_parse_from_json_and_reject_unknown_fields() {
     let p: DecomposeParams = serde_json::from_str(
