@@ -254,6 +254,19 @@ fn server_args(server: &str, token: &Option<String>) -> ServerArgs {
     }
 }
 
+/// POSTs `body` as JSON to `path` and returns the answer's JSON (a refusal is the client's
+/// error, with its exit code).
+fn post_json(
+    client: &Client,
+    path: &str,
+    body: &impl serde::Serialize,
+) -> anyhow::Result<serde_json::Value> {
+    let rb = client.request(Method::POST, path).json(body);
+    client
+        .runtime
+        .block_on(async { anyhow::Ok(client.send(rb).await?.json().await?) })
+}
+
 /// Runs `truecut iso230-2`.
 pub fn run_2(args: Args2) -> anyhow::Result<()> {
     let mut req = read_230_2(&args.file, args.period_s)?;
@@ -285,10 +298,7 @@ pub fn run_2(args: Args2) -> anyhow::Result<()> {
                 }
                 _ => "/v1/iso230-2".to_string(),
             };
-            let rb = client.request(Method::POST, &path).json(&req);
-            client
-                .runtime
-                .block_on(async { anyhow::Ok(client.send(rb).await?.json().await?) })?
+            post_json(&client, &path, &req)?
         }
     };
     if args.json {
@@ -381,15 +391,11 @@ pub fn run_4(args: Args4) -> anyhow::Result<()> {
         if let Some(f) = args.feed {
             body["feed"] = serde_json::json!(f);
         }
-        let rb = client
-            .request(
-                Method::POST,
-                &format!("/v1/machines/{machine}/iso230-4/simulate"),
-            )
-            .json(&body);
-        let answer: serde_json::Value = client
-            .runtime
-            .block_on(async { anyhow::Ok(client.send(rb).await?.json().await?) })?;
+        let answer = post_json(
+            &client,
+            &format!("/v1/machines/{machine}/iso230-4/simulate"),
+            &body,
+        )?;
         if !args.json {
             let mut s = String::from("ISO 230-4:2005, simulated, µm\n");
             for (dir, run) in answer["runs"].as_object().into_iter().flatten() {
@@ -452,10 +458,7 @@ pub fn run_4(args: Args4) -> anyhow::Result<()> {
             }
             Some(server) => {
                 let client = Client::new(&server_args(server, &args.token))?;
-                let rb = client.request(Method::POST, "/v1/iso230-4").json(&req);
-                client
-                    .runtime
-                    .block_on(async { anyhow::Ok(client.send(rb).await?.json().await?) })?
+                post_json(&client, "/v1/iso230-4", &req)?
             }
         }
     };

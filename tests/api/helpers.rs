@@ -251,27 +251,32 @@ impl TestApp {
 impl Drop for TestApp {
     fn drop(&mut self) {
         if let Some((base, schema)) = self.pg_schema.take() {
-            // Drop is synchronous and may run inside the test's runtime: use a thread with
-            // its own runtime.
-            let _ = std::thread::spawn(move || {
-                let rt = tokio::runtime::Builder::new_current_thread()
-                    .enable_all()
-                    .build()
-                    .ok()?;
-                rt.block_on(async {
-                    use sqlx::{Connection, Executor};
-                    let mut conn = sqlx::postgres::PgConnection::connect(&base).await.ok()?;
-                    conn.execute(sqlx::AssertSqlSafe(format!(
-                        "DROP SCHEMA IF EXISTS {schema} CASCADE"
-                    )))
-                    .await
-                    .ok()?;
-                    conn.close().await.ok()
-                })
-            })
-            .join();
+            drop_pg_schema(base, schema);
         }
     }
+}
+
+/// Drops a test's PostgreSQL schema, from synchronous code (a `Drop`) that may run inside the
+/// test's runtime: on a thread with its own runtime. Errors are ignored (the schema is
+/// throw-away; a leftover one only costs space).
+pub fn drop_pg_schema(base: String, schema: String) {
+    let _ = std::thread::spawn(move || {
+        let rt = tokio::runtime::Builder::new_current_thread()
+            .enable_all()
+            .build()
+            .ok()?;
+        rt.block_on(async {
+            use sqlx::{Connection, Executor};
+            let mut conn = sqlx::postgres::PgConnection::connect(&base).await.ok()?;
+            conn.execute(sqlx::AssertSqlSafe(format!(
+                "DROP SCHEMA IF EXISTS {schema} CASCADE"
+            )))
+            .await
+            .ok()?;
+            conn.close().await.ok()
+        })
+    })
+    .join();
 }
 
 /// A `nu × nv` flat test surface (z = 0, normals +z) with grid spacing 1 mm.

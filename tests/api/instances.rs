@@ -254,24 +254,7 @@ impl PgSchema {
 
 impl Drop for PgSchema {
     fn drop(&mut self) {
-        let (base, schema) = (self.base.clone(), self.schema.clone());
-        let _ = std::thread::spawn(move || {
-            let rt = tokio::runtime::Builder::new_current_thread()
-                .enable_all()
-                .build()
-                .ok()?;
-            rt.block_on(async {
-                use sqlx::{Connection, Executor};
-                let mut conn = sqlx::postgres::PgConnection::connect(&base).await.ok()?;
-                conn.execute(sqlx::AssertSqlSafe(format!(
-                    "DROP SCHEMA IF EXISTS {schema} CASCADE"
-                )))
-                .await
-                .ok()?;
-                conn.close().await.ok()
-            })
-        })
-        .join();
+        crate::helpers::drop_pg_schema(self.base.clone(), self.schema.clone());
     }
 }
 
