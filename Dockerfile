@@ -3,8 +3,9 @@
 # (the container listens on 0.0.0.0, which truecut allows only with tokens configured).
 FROM rust:1-slim-bookworm AS build
 WORKDIR /src
-COPY Cargo.toml Cargo.lock ./
+COPY Cargo.toml Cargo.lock openapi.yaml ./
 COPY src ./src
+COPY assets ./assets
 COPY migrations ./migrations
 COPY benches ./benches
 COPY tests ./tests

@@ -8,7 +8,8 @@
 //! - no source file is over 600 lines before its tests;
 //! - one module style: a module with submodules is a folder whose `mod.rs` declares them, a
 //!   leaf module is `foo.rs`, and unit tests live in `foo/tests.rs` (no inline `mod tests {`);
-//! - no test or build step reads outside the repository (the sibling folder of shared docs).
+//! - no test or build step reads outside the repository (the sibling folder of shared docs);
+//! - the Dockerfile's build stage copies every file the binary compiles in (`include_str!`).
 //!
 //! Each failure names the file, the line and the rule, and says how to fix it.
 
@@ -394,6 +395,67 @@ fn nothing_reads_outside_the_repository() {
         bad.is_empty(),
         "a clone stands alone: vendor what these read under tests/data/ (with its origin in \
          tests/data/README.md):\n{}",
+        bad.join("\n")
+    );
+}
+
+/// The container build copies only what the Dockerfile names: a file compiled in with
+/// `include_str!`/`include_bytes!` from outside `src/` must lie under a copied path (the
+/// dashboard's assets were once missing, and the image did not build).
+#[test]
+fn the_dockerfile_copies_what_the_binary_compiles_in() {
+    let docker = std::fs::read_to_string(root().join("Dockerfile")).unwrap();
+    // the text between the first and the second FROM (the comments above the first are skipped)
+    let build_stage = docker.split("\nFROM ").nth(1).unwrap_or("");
+    let copied: Vec<String> = build_stage
+        .lines()
+        .filter_map(|l| l.trim().strip_prefix("COPY "))
+        .filter(|l| !l.starts_with("--from"))
+        .flat_map(|l| {
+            let words: Vec<&str> = l.split_whitespace().collect();
+            let sources = &words[..words.len().saturating_sub(1)];
+            sources
+                .iter()
+                .map(|w| w.trim_end_matches('/').to_string())
+                .collect::<Vec<_>>()
+        })
+        .collect();
+    let mut bad = Vec::new();
+    for f in rust_files(&root().join("src")) {
+        let text = std::fs::read_to_string(&f).unwrap();
+        for (no, line) in text.lines().enumerate() {
+            for mac in ["include_str!(\"", "include_bytes!(\""] {
+                let Some(at) = line.find(mac) else { continue };
+                let arg = &line[at + mac.len()..];
+                let Some(end) = arg.find('"') else { continue };
+                let target = f.parent().unwrap().join(&arg[..end]);
+                let Ok(target) = target.canonicalize() else {
+                    bad.push(format!(
+                        "{}:{}: {} does not exist",
+                        rel(&f),
+                        no + 1,
+                        &arg[..end]
+                    ));
+                    continue;
+                };
+                let inside = rel(&target);
+                if !copied
+                    .iter()
+                    .any(|c| inside == *c || inside.starts_with(&format!("{c}/")))
+                {
+                    bad.push(format!("{}:{}: {inside}", rel(&f), no + 1));
+                }
+            }
+        }
+    }
+    assert!(
+        !copied.is_empty(),
+        "no COPY lines found in the Dockerfile's build stage"
+    );
+    assert!(
+        bad.is_empty(),
+        "the Dockerfile's build stage copies {copied:?} but the binary compiles in files \
+         outside them; add a COPY line:\n{}",
         bad.join("\n")
     );
 }
