@@ -246,6 +246,23 @@ pub fn check_coords(field: &str, points: &[[f64; 3]]) -> ApiResult<()> {
 /// Refuses a finite length outside ±[`COORD_LIMIT_MM`] (a position, reading or target in
 /// mm), naming `field[i]`.
 pub fn check_lengths<'a>(field: &str, values: impl IntoIterator<Item = &'a f64>) -> ApiResult<()> {
+    check_within_coord_limit(field, values, "positions")
+}
+
+/// Refuses a finite machining-error sample outside ±[`COORD_LIMIT_MM`] (the stateless
+/// `POST /v1/decompose` signal, mm), naming `field[i]`: beyond 100 m the sample is a wrong
+/// unit, and squares of such numbers overflow the decomposition's energy sums.
+pub fn check_signal_mm(field: &str, values: &[f64]) -> ApiResult<()> {
+    check_within_coord_limit(field, values, "a machining error's samples")
+}
+
+/// The check behind [`check_lengths`] and [`check_signal_mm`]; `what` names the values in
+/// the sentence.
+fn check_within_coord_limit<'a>(
+    field: &str,
+    values: impl IntoIterator<Item = &'a f64>,
+    what: &str,
+) -> ApiResult<()> {
     match values
         .into_iter()
         .enumerate()
@@ -253,25 +270,8 @@ pub fn check_lengths<'a>(field: &str, values: impl IntoIterator<Item = &'a f64>)
     {
         None => Ok(()),
         Some((i, v)) => Err(ApiError::bad_request(format!(
-            "{field}[{i}] = {v:e} is outside the physical range: positions must lie within \
+            "{field}[{i}] = {v:e} is outside the physical range: {what} must lie within \
              ±{COORD_LIMIT_MM} mm (100 m); check the units (mm)"
-        ))),
-    }
-}
-
-/// Refuses a finite machining-error sample outside ±[`COORD_LIMIT_MM`] (the stateless
-/// `POST /v1/decompose` signal, mm), naming `field[i]`: beyond 100 m the sample is a wrong
-/// unit, and squares of such numbers overflow the decomposition's energy sums.
-pub fn check_signal_mm(field: &str, values: &[f64]) -> ApiResult<()> {
-    match values
-        .iter()
-        .position(|v| v.is_finite() && v.abs() > COORD_LIMIT_MM)
-    {
-        None => Ok(()),
-        Some(i) => Err(ApiError::bad_request(format!(
-            "{field}[{i}] = {:e} is outside the physical range: a machining error must lie \
-             within ±{COORD_LIMIT_MM} mm (100 m); check the units (mm)",
-            values[i]
         ))),
     }
 }
