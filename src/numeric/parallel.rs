@@ -1,11 +1,14 @@
 //! Splitting a core's work over scoped threads: the thread count, a static split into
 //! contiguous chunks (batches of equal cost: network inference, step errors), a dynamic queue
-//! (items of very different cost: gap effect fits) and a two-task join.
+//! (items of very different cost: gap effect fits), a two-task join, and a two-thread
+//! lockstep exchange (iterations too short for a thread or a futex per step: VMD's sweeps).
 //!
 //! Written here rather than with rayon: the cores need three small patterns, and a global
 //! pool would compete with the service's own bounded worker pool (`jobs`) for the same cores.
 
-use std::sync::atomic::{AtomicUsize, Ordering};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::time::{Duration, Instant};
 
 /// Threads to use when a caller asks for `asked` (0 = the machine's available
 /// parallelism, 1 when that cannot be read).
@@ -121,6 +124,119 @@ pub fn join<A: Send, B>(
         let b = foreground();
         (handle.join(), b)
     })
+}
+
+/// Two threads iterating in lockstep, each over its half of the data, that must combine a
+/// small per-iteration result (VMD's per-mode sums) before either can go on. Each step is a
+/// few microseconds, so the wait spins ([`std::hint::spin_loop`]) for up to
+/// [`Lockstep::SPIN`] before it falls back to yielding the core (a partner descheduled on a
+/// busy machine then costs a time slice, not a burned core).
+///
+/// `exchange(side, step, mine)` publishes `mine` for `step`, waits for the other side's value
+/// of the same step and returns `(side 0's, side 1's)`: both sides see the same pair, so a
+/// deterministic combination of it is bit-identical on both. Values are double-buffered by the
+/// step's parity, so one barrier per step suffices: a side cannot publish step s + 2 before the
+/// other has passed step s + 1, i.e. finished reading step s.
+///
+/// If a side panics or returns early, its [`LockstepGuard`] marks the exchange abandoned and
+/// the other side's next wait panics instead of spinning forever.
+pub struct Lockstep<T> {
+    slots: [[Mutex<Option<T>>; 2]; 2],
+    arrived: AtomicUsize,
+    generation: AtomicUsize,
+    abandoned: AtomicBool,
+}
+
+impl<T: Clone> Lockstep<T> {
+    /// Longest spin before a waiting side yields its core.
+    pub const SPIN: Duration = Duration::from_micros(200);
+
+    /// An exchange for two sides.
+    pub fn new() -> Self {
+        Self {
+            slots: Default::default(),
+            arrived: AtomicUsize::new(0),
+            generation: AtomicUsize::new(0),
+            abandoned: AtomicBool::new(false),
+        }
+    }
+
+    /// A guard for side `side` (0 or 1): abandons the exchange when dropped while its thread
+    /// panics, or when [`LockstepGuard::leave`] was not called.
+    pub fn guard(&self) -> LockstepGuard<'_, T> {
+        LockstepGuard {
+            lockstep: self,
+            left: false,
+        }
+    }
+
+    /// Publishes `mine` as side `side`'s value of `step`; returns both sides' values of that
+    /// step once the other side has published too.
+    pub fn exchange(&self, side: usize, step: usize, mine: T) -> (T, T) {
+        let parity = step % 2;
+        *self.slots[parity][side]
+            .lock()
+            .unwrap_or_else(|p| p.into_inner()) = Some(mine);
+        self.wait();
+        let read = |s: usize| {
+            self.slots[parity][s]
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .clone()
+                .expect("both sides published before the barrier opened")
+        };
+        (read(0), read(1))
+    }
+
+    /// The two-party barrier: the second to arrive opens it for both.
+    fn wait(&self) {
+        let generation = self.generation.load(Ordering::Acquire);
+        if self.arrived.fetch_add(1, Ordering::AcqRel) == 1 {
+            self.arrived.store(0, Ordering::Relaxed);
+            self.generation.fetch_add(1, Ordering::Release);
+            return;
+        }
+        let start = Instant::now();
+        let mut spins = 0u32;
+        while self.generation.load(Ordering::Acquire) == generation {
+            if self.abandoned.load(Ordering::Acquire) {
+                panic!("the other side of a lockstep exchange stopped");
+            }
+            spins = spins.wrapping_add(1);
+            if spins % 64 != 0 || start.elapsed() < Self::SPIN {
+                std::hint::spin_loop();
+            } else {
+                std::thread::yield_now();
+            }
+        }
+    }
+}
+
+impl<T: Clone> Default for Lockstep<T> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+/// See [`Lockstep::guard`].
+pub struct LockstepGuard<'a, T> {
+    lockstep: &'a Lockstep<T>,
+    left: bool,
+}
+
+impl<T> LockstepGuard<'_, T> {
+    /// This side has finished normally (after its last exchange).
+    pub fn leave(mut self) {
+        self.left = true;
+    }
+}
+
+impl<T> Drop for LockstepGuard<'_, T> {
+    fn drop(&mut self) {
+        if !self.left {
+            self.lockstep.abandoned.store(true, Ordering::Release);
+        }
+    }
 }
 
 fn join_or_resume<R>(h: std::thread::ScopedJoinHandle<'_, R>) -> R {

@@ -5,7 +5,8 @@
 //! Written here (no crate): vmd-rs is an unreviewed port (DESIGN.md). Each iteration's pass
 //! over the spectrum is in [`super::sweep`].
 
-use super::sweep::{Kernel, Real, kernel_f32, kernel_f64, sweep};
+use super::sweep::{Kernel, Real, Sums, kernel_f32, kernel_f64};
+use crate::numeric::parallel::{self, Lockstep};
 use crate::signal::error::{Error, check_signal};
 use rustfft::num_complex::Complex;
 use serde::{Deserialize, Serialize};
@@ -98,24 +99,61 @@ impl VmdParams {
     }
 }
 
-/// Spectra at least this long (bins) are swept by two threads.
-const PARALLEL_MIN_BINS: usize = 32_768;
+/// Spectra at least this long (bins; signals of at least this many samples) are iterated by
+/// two threads in lockstep (see [`admm`]) when the machine has two cores. Measured on Zen 3
+/// (2,025 bins, K = 7): one sweep takes about 12 µs, the lockstep exchange well under 1 µs,
+/// and the thread is started once per decomposition (≈ 30 µs), so the split pays from a few
+/// hundred bins on; below 1,024 the whole iteration is too short to bother.
+const PARALLEL_MIN_BINS: usize = 1_024;
 
 /// Spectra at least this long (bins; signals of at least this many samples) are iterated in
 /// f32 (see [`vmd`]).
 pub const F32_MIN_BINS: usize = 16_384;
+
+/// One side's share of the bins: the coefficient slices c_k, |f̂|², frequencies, and the
+/// target 1 − l/2 with the dual l (τ ≠ 0 only).
+struct Bins<'a, C> {
+    c: Vec<&'a mut [C]>,
+    power: &'a [C],
+    freqs: &'a [C],
+    target: Option<(&'a mut [C], &'a mut [f64])>,
+}
 
 /// The ADMM iteration of [`vmd`] in coefficient form. Every update multiplies f̂(b) by a
 /// real number, so from û = 0 and λ̂ = 0 every iterate is û_k(b) = c_k(b)·f̂(b) and
 /// λ̂(b) = l(b)·f̂(b) with real c_k and l: the iteration runs on the c_k (half the memory
 /// of complex modes), weighted by `power` = |f̂(b)|² in the sums. Updates `omega`; returns
 /// the c_k (as f64), the iteration count and the last convergence measure.
+///
+/// From [`PARALLEL_MIN_BINS`] bins on two cores, the bins are split in two halves iterated
+/// by two threads in lockstep ([`Lockstep`]): every bin's update needs only that bin and
+/// ω, so each thread sweeps its half, the two per-mode sums are exchanged and both threads
+/// compute the same ω and stopping measure from sums(lower half) + sums(upper half). The
+/// result is the single-threaded one up to the order of those two partial sums (checked by
+/// `split_iteration_matches_single_thread`).
 pub(super) fn admm<C: Real>(
     kernel: Kernel<C>,
     power: &[f64],
     freqs: &[f64],
     omega: &mut [f64],
     params: &VmdParams,
+) -> (Vec<Vec<f64>>, usize, f64) {
+    let threads = if power.len() >= PARALLEL_MIN_BINS {
+        parallel::resolve_threads(0).min(2)
+    } else {
+        1
+    };
+    admm_on(kernel, power, freqs, omega, params, threads)
+}
+
+/// [`admm`] on `threads` threads (1, or 2 in lockstep).
+pub(super) fn admm_on<C: Real>(
+    kernel: Kernel<C>,
+    power: &[f64],
+    freqs: &[f64],
+    omega: &mut [f64],
+    params: &VmdParams,
+    threads: usize,
 ) -> (Vec<Vec<f64>>, usize, f64) {
     let m = power.len();
     let t = 2 * m;
@@ -125,36 +163,101 @@ pub(super) fn admm<C: Real>(
     let mut dual = vec![0.0; m];
     let mut target: Option<Vec<C>> = (params.tau != 0.0).then(|| vec![C::from64(1.0); m]);
     let mut c = vec![vec![C::default(); m]; k_modes];
+    let mid = m / 2 / 8 * 8;
+    let (iterations, u_diff) = if threads < 2 || mid == 0 {
+        let bins = Bins {
+            c: c.iter_mut().map(|v| v.as_mut_slice()).collect(),
+            power: &power,
+            freqs: &freqs,
+            target: target.as_deref_mut().map(|tc| (tc, dual.as_mut_slice())),
+        };
+        iterate(kernel, bins, omega, t, params, None)
+    } else {
+        let (ca, cb): (Vec<&mut [C]>, Vec<&mut [C]>) =
+            c.iter_mut().map(|v| v.split_at_mut(mid)).unzip();
+        let (targets_a, targets_b) = match target.as_deref_mut() {
+            Some(tc) => {
+                let (ta, tb) = tc.split_at_mut(mid);
+                let (da, db) = dual.split_at_mut(mid);
+                (Some((ta, da)), Some((tb, db)))
+            }
+            None => (None, None),
+        };
+        let lower = Bins {
+            c: ca,
+            power: &power[..mid],
+            freqs: &freqs[..mid],
+            target: targets_a,
+        };
+        let upper = Bins {
+            c: cb,
+            power: &power[mid..],
+            freqs: &freqs[mid..],
+            target: targets_b,
+        };
+        let lockstep = Lockstep::new();
+        let mut omega_b = omega.to_vec();
+        let (b, a) = parallel::join(
+            || iterate(kernel, upper, &mut omega_b, t, params, Some((&lockstep, 1))),
+            || iterate(kernel, lower, omega, t, params, Some((&lockstep, 0))),
+        );
+        let b = b.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        debug_assert!(b.0 == a.0 && omega_b == omega, "the two sides agree");
+        a
+    };
+    let c = c
+        .into_iter()
+        .map(|v| v.into_iter().map(Real::to64).collect())
+        .collect();
+    (c, iterations, u_diff)
+}
+
+/// The iteration loop of [`admm_on`] over one side's bins (all of them, or one half with its
+/// `lockstep` partner): returns the iteration count and the last convergence measure. `t` is
+/// the mirrored signal's length T (the whole spectrum's, 2 × all bins).
+fn iterate<C: Real>(
+    kernel: Kernel<C>,
+    mut bins: Bins<'_, C>,
+    omega: &mut [f64],
+    t: usize,
+    params: &VmdParams,
+    lockstep: Option<(&Lockstep<Sums>, usize)>,
+) -> (usize, f64) {
+    let k_modes = omega.len();
+    let guard = lockstep.map(|(l, _)| l.guard());
     let mut iterations = 0;
     let mut u_diff = f64::INFINITY;
-    let threads = if m >= PARALLEL_MIN_BINS {
-        std::thread::available_parallelism()
-            .map_or(1, |p| p.get())
-            .min(2)
-    } else {
-        1
-    };
     // ‖û_k^n‖² of the iterate before the sweep (the sweep returns that of the new one).
     let mut prev_den = vec![0.0; k_modes];
     while iterations < params.max_iter.saturating_sub(1) && u_diff > params.tol {
-        let sums = sweep(
-            kernel,
-            &mut c,
-            &power,
-            target.as_deref(),
-            &freqs,
+        let mut mine = Sums::new(k_modes);
+        kernel(
+            &mut bins.c,
+            bins.power,
+            bins.target.as_ref().map(|(tc, _)| &**tc),
+            bins.freqs,
             omega,
             params.alpha,
-            threads,
+            &mut mine,
         );
+        let sums = match lockstep {
+            None => mine,
+            Some((l, side)) => {
+                let (lower, upper) = l.exchange(side, iterations, mine);
+                let mut sums = Sums::new(k_modes);
+                sums.add(&lower);
+                sums.add(&upper);
+                sums
+            }
+        };
         for (k, om) in omega.iter_mut().enumerate() {
             if !(params.dc && k == 0) && sums.den[k] > 0.0 {
                 *om = sums.num[k] / sums.den[k];
             }
         }
-        if let Some(tc) = target.as_mut() {
-            for b in 0..m {
-                let s: f64 = (0..k_modes).map(|k| c[k][b].to64()).sum();
+        if let Some((tc, dual)) = bins.target.as_mut() {
+            for b in 0..tc.len() {
+                let s: f64 = (0..k_modes).map(|k| bins.c[k][b].to64()).sum();
                 dual[b] += params.tau * (s - 1.0);
                 tc[b] = C::from64(1.0 - 0.5 * dual[b]);
             }
@@ -176,11 +279,10 @@ pub(super) fn admm<C: Real>(
         };
         prev_den = sums.den;
     }
-    let c = c
-        .into_iter()
-        .map(|v| v.into_iter().map(Real::to64).collect())
-        .collect();
-    (c, iterations, u_diff)
+    if let Some(g) = guard {
+        g.leave();
+    }
+    (iterations, u_diff)
 }
 
 /// Output of [`vmd`].

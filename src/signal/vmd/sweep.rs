@@ -15,6 +15,7 @@ use super::lanes::Lanes;
 pub(super) const BLOCK: usize = 512;
 
 /// Per-mode sums of one sweep: Σν|û_k|², Σ|û_k|², Σ|Δû_k|².
+#[derive(Clone)]
 pub(super) struct Sums {
     pub(super) num: Vec<f64>,
     pub(super) den: Vec<f64>,
@@ -30,7 +31,8 @@ impl Sums {
         }
     }
 
-    fn add(&mut self, o: &Sums) {
+    /// Adds `o` mode by mode.
+    pub(super) fn add(&mut self, o: &Sums) {
         for i in 0..self.num.len() {
             self.num[i] += o.num[i];
             self.den[i] += o.den[i];
@@ -70,63 +72,6 @@ impl Real for f32 {
 /// A sweep over one contiguous bin range: coefficients c_k, |f̂|², target (1 − l/2, `None`
 /// = 1), bin frequencies, ω, α; adds to the sums.
 pub(super) type Kernel<C> = fn(&mut [&mut [C]], &[C], Option<&[C]>, &[C], &[f64], f64, &mut Sums);
-
-/// One ADMM iteration over all bins in the coefficient form of [`vmd`] (û_k = c_k·f̂):
-/// updates every c_k in place and returns the per-mode [`Sums`]. Splits the bins over
-/// `threads` threads.
-#[allow(clippy::too_many_arguments)]
-pub(super) fn sweep<C: Real>(
-    kernel: Kernel<C>,
-    c: &mut [Vec<C>],
-    power: &[C],
-    target: Option<&[C]>,
-    freqs: &[C],
-    omega: &[f64],
-    alpha: f64,
-    threads: usize,
-) -> Sums {
-    let m = power.len();
-    let k = omega.len();
-    let mut sums = Sums::new(k);
-    if threads <= 1 {
-        let mut cs: Vec<&mut [C]> = c.iter_mut().map(|v| v.as_mut_slice()).collect();
-        kernel(&mut cs, power, target, freqs, omega, alpha, &mut sums);
-        return sums;
-    }
-    let mid = m / 2 / 8 * 8;
-    let (mut ca, mut cb): (Vec<&mut [C]>, Vec<&mut [C]>) =
-        c.iter_mut().map(|v| v.split_at_mut(mid)).unzip();
-    let mut sums_b = Sums::new(k);
-    let (ta, tb) = match target {
-        Some(t) => (Some(&t[..mid]), Some(&t[mid..])),
-        None => (None, None),
-    };
-    std::thread::scope(|s| {
-        let handle = s.spawn(|| {
-            kernel(
-                &mut cb,
-                &power[mid..],
-                tb,
-                &freqs[mid..],
-                omega,
-                alpha,
-                &mut sums_b,
-            )
-        });
-        kernel(
-            &mut ca,
-            &power[..mid],
-            ta,
-            &freqs[..mid],
-            omega,
-            alpha,
-            &mut sums,
-        );
-        handle.join().expect("VMD sweep thread panicked");
-    });
-    sums.add(&sums_b);
-    sums
-}
 
 /// The f64 kernel: AVX2+FMA (4 bins per instruction) when available, else portable.
 pub(super) fn kernel_f64(
