@@ -223,7 +223,7 @@ pub fn whittaker(x: &[f64], d: usize, lambda: Option<f64>) -> Result<Smoothed, E
 /// Arranged for a short serial chain: each row's D is inverted once, so the row's L entries
 /// cost multiplications rather than divisions (the factorisation is a recurrence down the
 /// rows, so latency, not operation count, is what it costs), and the refinement reuses its
-/// buffers. Measured at n = 2,025, d = 4: see BENCHMARKS.md (issue 12).
+/// buffers.
 fn solve_banded(x: &[f64], d: usize, lam: f64) -> Vec<f64> {
     let n = x.len();
     // Difference stencil c_j = (-1)^(d-j) C(d, j).

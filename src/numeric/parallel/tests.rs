@@ -45,3 +45,49 @@ fn splits_match_the_serial_loop() {
     let (bad, _) = join(|| -> u8 { panic!("background") }, || ());
     assert!(bad.is_err());
 }
+
+#[test]
+fn lockstep_pairs_each_step_and_both_sides_see_the_same_pair() {
+    // 2,000 steps, each side publishing (side, step): every exchange returns exactly that
+    // step's pair, on both sides, whichever side arrives first.
+    let l = Lockstep::<(usize, usize)>::new();
+    let run = |side: usize| {
+        let g = l.guard();
+        let mut seen = Vec::new();
+        for step in 0..2000 {
+            if step % 97 == side {
+                std::thread::yield_now(); // vary who arrives first
+            }
+            seen.push(l.exchange(side, step, (side, step)));
+        }
+        g.leave();
+        seen
+    };
+    let (b, a) = join(|| run(1), || run(0));
+    let b = b.unwrap();
+    assert_eq!(a, b);
+    for (step, pair) in a.iter().enumerate() {
+        assert_eq!(*pair, ((0, step), (1, step)));
+    }
+}
+
+#[test]
+fn lockstep_side_that_panics_stops_the_other_instead_of_hanging() {
+    let l = Lockstep::<u32>::new();
+    let (other, ()) = join(
+        || {
+            let _g = l.guard();
+            l.exchange(1, 0, 7);
+            l.exchange(1, 1, 7) // side 0 never publishes step 1
+        },
+        || {
+            let g = l.guard();
+            l.exchange(0, 0, 3);
+            drop(g); // leaves without `leave`: as a panic would
+        },
+    );
+    assert!(
+        other.is_err(),
+        "the waiting side panicked rather than spinning forever"
+    );
+}
