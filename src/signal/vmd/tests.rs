@@ -119,6 +119,21 @@ fn relative_convergence_is_scale_free_absolute_is_not() {
     }
 }
 
+/// |X(b)|² and b/n (cycles/sample) of the one-sided spectrum of `x` (bins 0..n/2): the
+/// iteration's inputs for a signal taken as it is (no mirroring).
+fn one_sided_power(x: &[f64]) -> (Vec<f64>, Vec<f64>) {
+    let n = x.len();
+    let mut planner = RealFftPlanner::<f64>::new();
+    let fwd = planner.plan_fft_forward(n);
+    let mut buf = x.to_vec();
+    let mut spec = fwd.make_output_vec();
+    fwd.process(&mut buf, &mut spec).unwrap();
+    let m = n / 2;
+    let power = spec[..m].iter().map(|c| c.norm_sqr()).collect();
+    let freqs = (0..m).map(|b| b as f64 / n as f64).collect();
+    (power, freqs)
+}
+
 #[test]
 fn f32_iteration_matches_f64() {
     // The f32 path (long spectra) against the f64 one on the same input: modes to 1e-6
@@ -132,14 +147,7 @@ fn f32_iteration_matches_f64() {
                 + 0.005 * ((k * 7919 % 1000) as f64 / 500.0 - 1.0)
         })
         .collect();
-    let mut planner = RealFftPlanner::<f64>::new();
-    let fwd = planner.plan_fft_forward(n);
-    let mut buf = x.clone();
-    let mut spec = fwd.make_output_vec();
-    fwd.process(&mut buf, &mut spec).unwrap();
-    let m = n / 2;
-    let power: Vec<f64> = spec[..m].iter().map(|c| c.norm_sqr()).collect();
-    let freqs: Vec<f64> = (0..m).map(|b| b as f64 / n as f64).collect();
+    let (power, freqs) = one_sided_power(&x);
     let p = VmdParams {
         k: Some(4),
         max_iter: 41,
@@ -299,14 +307,7 @@ fn split_iteration_matches_single_thread() {
                 + 0.01 * (u - 0.5)
         })
         .collect();
-    let mut planner = RealFftPlanner::<f64>::new();
-    let fwd = planner.plan_fft_forward(n);
-    let mut buf = x.clone();
-    let mut spec = fwd.make_output_vec();
-    fwd.process(&mut buf, &mut spec).unwrap();
-    let m = n / 2;
-    let power: Vec<f64> = spec[..m].iter().map(|c| c.norm_sqr()).collect();
-    let freqs: Vec<f64> = (0..m).map(|b| b as f64 / n as f64).collect();
+    let (power, freqs) = one_sided_power(&x);
     fn check<C: Real>(
         kernel: Kernel<C>,
         power: &[f64],
