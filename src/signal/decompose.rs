@@ -12,6 +12,7 @@ use super::vmd::{VmdParams, choose_k, vmd};
 use super::wavelet::{Wavelet, denoise};
 use super::whittaker::Smoothed;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Decomposition method (openapi.yaml `POST /v1/decompose`). `coarse_to_fine` is the default; the
 /// others are the single-method baselines of Chen et al. 2024's Table 3.
@@ -110,6 +111,31 @@ pub struct Decomposition {
     pub outliers: Vec<usize>,
 }
 
+/// Decompositions in progress in the process ([`decompose`] calls), read by the VMD
+/// iteration to decide whether a second thread would find a free core.
+static RUNNING: AtomicUsize = AtomicUsize::new(0);
+
+/// The number of [`decompose`] calls in progress in the process, the caller's included.
+pub(crate) fn decompositions_running() -> usize {
+    RUNNING.load(Ordering::Relaxed)
+}
+
+/// Counts one [`decompose`] call in [`RUNNING`] while it lives.
+struct Running;
+
+impl Running {
+    fn enter() -> Self {
+        RUNNING.fetch_add(1, Ordering::Relaxed);
+        Running
+    }
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        RUNNING.fetch_sub(1, Ordering::Relaxed);
+    }
+}
+
 /// Largest accepted signal (openapi.yaml: sync up to 250,000 samples; the core takes 4x that).
 pub const MAX_SAMPLES: usize = 1_000_000;
 
@@ -128,6 +154,7 @@ pub fn decompose(
     method: Method,
     params: &DecomposeParams,
 ) -> Result<Decomposition, Error> {
+    let _running = Running::enter();
     check_signal(method.as_str(), x, 16)?;
     params.flyers.validate()?;
     let grid = match (params.nu, params.nv) {

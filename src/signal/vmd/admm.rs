@@ -10,6 +10,7 @@ use crate::numeric::parallel::{self, Lockstep};
 use crate::signal::error::{Error, check_signal};
 use rustfft::num_complex::Complex;
 use serde::{Deserialize, Serialize};
+use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// VMD parameters (names as vmdpy / Zosso's MATLAB code).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -132,6 +133,12 @@ struct Bins<'a, C> {
 /// compute the same ω and stopping measure from sums(lower half) + sums(upper half). The
 /// result is the single-threaded one up to the order of those two partial sums (checked by
 /// `split_iteration_matches_single_thread`).
+///
+/// Only a run that starts while no other VMD run and no other decomposition is in progress in
+/// the process splits: when the service's workers are all decomposing, the cores are already
+/// busy, and a second thread per run only adds waiting at the exchange. Measured with
+/// `bench/overload.sh` (2 workers, 8-64 connections; BENCHMARKS.md): goodput 76-78/s before
+/// the split, 50-58/s splitting always, 64-74/s splitting when no other VMD runs.
 pub(super) fn admm<C: Real>(
     kernel: Kernel<C>,
     power: &[f64],
@@ -139,7 +146,18 @@ pub(super) fn admm<C: Real>(
     omega: &mut [f64],
     params: &VmdParams,
 ) -> (Vec<Vec<f64>>, usize, f64) {
-    let threads = if power.len() >= PARALLEL_MIN_BINS {
+    // Runs of this iteration in progress in the process, this one included.
+    static RUNNING: AtomicUsize = AtomicUsize::new(0);
+    struct Running;
+    impl Drop for Running {
+        fn drop(&mut self) {
+            RUNNING.fetch_sub(1, Ordering::Relaxed);
+        }
+    }
+    let alone = RUNNING.fetch_add(1, Ordering::Relaxed) == 0
+        && crate::signal::decompose::decompositions_running() <= 1;
+    let _running = Running;
+    let threads = if alone && power.len() >= PARALLEL_MIN_BINS {
         parallel::resolve_threads(0).min(2)
     } else {
         1
