@@ -9,6 +9,9 @@ COPY assets ./assets
 COPY migrations ./migrations
 COPY benches ./benches
 COPY tests ./tests
+# The commit built, in every answer's truecut_version: docker build --build-arg
+# TRUECUT_GIT_COMMIT=$(git rev-parse --short HEAD) . (empty: the package version alone).
+ARG TRUECUT_GIT_COMMIT=
 RUN cargo build --release --locked --bin truecut
 
 FROM debian:bookworm-slim

@@ -17,6 +17,11 @@
 //!   input (flyer screen, VMD, screening + EMD, wavelet, stage-5 refinement, JSON decode of the
 //!   request and encode of the answer as the API does them).
 //!
+//! `-- --split` (with `--sizes`, `--reps`) times instead VMD alone and the default pipeline
+//! with the VMD pinned to one thread and to two (`truecut::signal::vmd::with_threads`),
+//! interleaved in the same run, and prints the one-thread / two-thread ratios (issue 25: the
+//! two give the same bits, so the split is a matter of speed only).
+//!
 //! Times are the best of `reps` runs (the machine is shared: the minimum is the least
 //! disturbed run).
 
@@ -25,7 +30,7 @@ use truecut::signal::coarse_to_fine::narrow_band_part;
 use truecut::signal::emd::emd;
 use truecut::signal::flyers::suspects;
 use truecut::signal::screen::{pearson, screen, sum_selected};
-use truecut::signal::vmd::vmd;
+use truecut::signal::vmd::{VmdParams, vmd, with_threads};
 use truecut::signal::wavelet::{Wavelet, denoise};
 use truecut::signal::whittaker::whittaker;
 use truecut::signal::{DecomposeParams, Method, decompose};
@@ -179,6 +184,39 @@ fn http(rt: &tokio::runtime::Runtime, base: &str, body: &str, reps: usize) -> f6
     })
 }
 
+/// `--split`: best of `reps` interleaved runs of VMD alone and of the default pipeline, VMD
+/// pinned to one thread and to two; one JSON line per size with both ratios one / two.
+fn split(sizes: &[usize], reps: usize) {
+    for &n in sizes {
+        let x = paper_signal(n);
+        let (p, vp) = (DecomposeParams::default(), VmdParams::default());
+        // best[stage][threads - 1], stage 0 = VMD alone, 1 = the default pipeline
+        let mut best = [[f64::INFINITY; 2]; 2];
+        for _ in 0..reps {
+            for threads in [1, 2] {
+                let v = time(1, || {
+                    with_threads(threads, || vmd(&x, &vp)).expect("VMD");
+                });
+                let c = time(1, || {
+                    with_threads(threads, || decompose(&x, Method::CoarseToFine, &p))
+                        .expect("decomposes");
+                });
+                best[0][threads - 1] = best[0][threads - 1].min(v);
+                best[1][threads - 1] = best[1][threads - 1].min(c);
+            }
+        }
+        println!(
+            "{{\"n\": {n}, \"vmd_one_s\": {:.6}, \"vmd_two_s\": {:.6}, \"vmd_one_over_two\": {:.3}, \"c2f_one_s\": {:.6}, \"c2f_two_s\": {:.6}, \"c2f_one_over_two\": {:.3}}}",
+            best[0][0],
+            best[0][1],
+            best[0][0] / best[0][1],
+            best[1][0],
+            best[1][1],
+            best[1][0] / best[1][1],
+        );
+    }
+}
+
 fn main() {
     let args: Vec<String> = std::env::args().collect();
     let dir = args
@@ -195,6 +233,10 @@ fn main() {
         .position(|a| a == "--reps")
         .and_then(|i| args.get(i + 1))
         .and_then(|s| s.parse().ok());
+    if args.iter().any(|a| a == "--split") {
+        split(&sizes, reps_arg.unwrap_or(20));
+        return;
+    }
     let rt = tokio::runtime::Runtime::new().expect("tokio runtime");
     let tmp = tempfile::tempdir().expect("temp dir");
     let config = truecut::config::Config::new(

@@ -52,3 +52,19 @@ pub mod step_error;
 pub mod store;
 pub mod volumetric;
 pub mod wire;
+
+/// The version of truecut that computed an answer, as `truecut_version` in decomposition,
+/// gap-diagnosis and volumetric-map answers and in stored job results (issue 25: the same
+/// input and version give the same bits): the package version, then `+` and the git commit
+/// when the build had it in the environment variable `TRUECUT_GIT_COMMIT` (`.ci/run` and the
+/// Dockerfile pass it; no build script, so a build without git still builds), e.g.
+/// `0.1.0+3e77321`.
+pub fn version() -> &'static str {
+    static VERSION: std::sync::OnceLock<String> = std::sync::OnceLock::new();
+    VERSION.get_or_init(|| match option_env!("TRUECUT_GIT_COMMIT") {
+        Some(commit) if !commit.trim().is_empty() => {
+            format!("{}+{}", env!("CARGO_PKG_VERSION"), commit.trim())
+        }
+        _ => env!("CARGO_PKG_VERSION").to_string(),
+    })
+}

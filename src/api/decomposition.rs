@@ -17,6 +17,7 @@ use super::auth::RequireWrite;
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, check_finite, decode_json, read_body};
 use super::lookup::{require_measurement, require_surface};
+use super::version::{Versioned, stamp};
 use crate::api::id::PathIds;
 use crate::jobs::{Progress, Runner};
 use crate::signal::{self, DecomposeParams, Method, decompose};
@@ -117,7 +118,7 @@ async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResul
     check_finite("signal", &r.signal)?;
     super::ranges::check_signal_mm("signal", &r.signal)?;
     match run(&state, r.signal, r.method, r.params, Some(&body)).await? {
-        Ok(v) => Ok(ApiJson(v).into_response()),
+        Ok(v) => Ok(ApiJson(Versioned::new(v)).into_response()),
         Err(accepted) => Ok(accepted),
     }
 }
@@ -157,7 +158,7 @@ async fn post_measurement_decomposition(
     // Always answered directly, so the result can be stored as the current decomposition.
     match run(&state, m.deviations, r.method, params, None).await? {
         Ok(d) => {
-            let v = serde_json::to_value(&d).map_err(ApiError::internal)?;
+            let v = stamp(serde_json::to_value(&d).map_err(ApiError::internal)?);
             state.store.put_doc(&machine, DOC_KIND, &key, &v).await?;
             Ok(ApiJson(v).into_response())
         }

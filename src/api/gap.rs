@@ -17,6 +17,7 @@ use super::contour::reader_options;
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, decode_json, is_json, read_body};
 use super::lookup::{require_machine, require_measurement, require_surface};
+use super::version::stamp;
 use crate::api::id::{Id, PathIds};
 use crate::gap::{
     self, GapRequest, PartBlock, PartGrid, ProgramCommand, diagnose_motion_program,
@@ -124,9 +125,12 @@ async fn gap_diagnosis(
                 .jobs
                 .run(move || diagnose_motion_request(&m, &req))
                 .await??;
-            Ok(ApiJson(answer).into_response())
+            Ok(ApiJson(stamp(answer)).into_response())
         }
-        "part" => Ok(ApiJson(diagnose_part_route(&state, &machine, req).await?).into_response()),
+        "part" => {
+            let answer = diagnose_part_route(&state, &machine, req).await?;
+            Ok(ApiJson(stamp(answer)).into_response())
+        }
         other => Err(ApiError::bad_request(format!(
             "domain must be \"motion\" or \"part\", got \"{other}\""
         ))),
@@ -202,7 +206,7 @@ async fn motion_from_program(
             Ok(diagnose_motion_program(&m, &req, Some(&cmd))?)
         })
         .await??;
-    Ok(ApiJson(answer).into_response())
+    Ok(ApiJson(stamp(answer)).into_response())
 }
 
 /// Most interpolation periods read from a program for a motion diagnosis.

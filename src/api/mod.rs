@@ -30,6 +30,7 @@ pub mod ranges;
 pub mod step_error;
 pub mod surfaces;
 pub mod upload;
+pub mod version;
 pub mod volumetric;
 
 use std::sync::Arc;

@@ -21,13 +21,20 @@ pub(super) fn new_progress(inner: &Inner, id: &str) -> Arc<Progress> {
     }))
 }
 
-/// Records a job's outcome (`None`: it never ran) and forgets its live progress.
+/// Records a job's outcome (`None`: it never ran) and forgets its live progress. A result
+/// object carries `truecut_version` ([`crate::version`]), the version of the instance that
+/// computed it, unless the runner set it.
 pub(super) async fn finish(
     inner: &Inner,
     id: &str,
     progress: &Progress,
-    outcome: Option<Result<Value, String>>,
+    mut outcome: Option<Result<Value, String>>,
 ) {
+    if let Some(Ok(Value::Object(result))) = &mut outcome {
+        result
+            .entry("truecut_version")
+            .or_insert_with(|| Value::from(crate::version()));
+    }
     let saved = match &outcome {
         None => Ok(false),
         Some(Ok(v)) => inner.store.finish_job(id, "done", 1.0, Some(v), None).await,

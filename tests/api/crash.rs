@@ -1,7 +1,8 @@
 //! Crashes of the real binary (SIGKILL, or an abort injected right before a model's commit
 //! with `TRUECUT_FAULT_CRASH_AT=model-commit`), on SQLite and on PostgreSQL: after a restart
 //! there is no partial upload, no model beside a job reported failed, and every job is in a
-//! clear state (re-queued and run again once the dead instance's lease expired).
+//! clear state (re-queued and run again once the dead instance's lease expired), and a re-run
+//! decomposition gives the same bits as one never interrupted.
 
 use std::io::Write;
 use std::time::{Duration, Instant};
@@ -176,3 +177,44 @@ async fn job_killed_mid_run(pg: Option<&PgSchema>) {
     inst.stop();
 }
 on_both!(job_killed_mid_run);
+
+/// Issue 25 (same input, same bits): SIGKILL while a stored decomposition runs; after the
+/// restart the job runs again (attempt 2, alone on a fresh process) and its result equals,
+/// bit for bit, the same input decomposed undisturbed in this test's own process (beside
+/// whatever other tests run there), and names the version that computed it.
+async fn decomposition_killed_mid_run_gives_the_same_bits(pg: Option<&PgSchema>) {
+    let dir = tempfile::tempdir().unwrap();
+    let inst = start(dir.path(), url(pg), &FLAGS, &[]).await;
+    let signal = crate::decomposition::long_signal(250_001, 3);
+    let params = serde_json::json!({"vmd": {"max_iter": 60}});
+    let body = serde_json::json!({"signal": signal, "params": params});
+    let (st, r) = inst.send("POST", "/v1/decompose", &body).await;
+    assert_eq!(st, 202, "{r}");
+    let id = r["job"].as_str().unwrap().to_string();
+    inst.wait_job(&id, Duration::from_secs(30), |j| j["state"] != "queued")
+        .await;
+    let path = inst.kill9();
+    let inst = start(&path, url(pg), &FLAGS, &[]).await;
+    let j = inst
+        .wait_job(&id, Duration::from_secs(120), |j| {
+            j["state"] == "done" || j["state"] == "failed"
+        })
+        .await;
+    assert_eq!(j["state"], "done", "{j}");
+    assert_eq!(j["attempts"], 2, "killed while running, so run again: {j}");
+    let p: truecut::signal::DecomposeParams = serde_json::from_value(params).unwrap();
+    let undisturbed = tokio::task::spawn_blocking(move || {
+        truecut::signal::decompose(&signal, truecut::signal::Method::CoarseToFine, &p)
+    })
+    .await
+    .unwrap()
+    .unwrap();
+    crate::decomposition::same_numbers(
+        "re-run after kill -9 vs undisturbed",
+        &j["result"],
+        &serde_json::to_value(&undisturbed).unwrap(),
+    );
+    assert_eq!(j["result"]["truecut_version"], truecut::version(), "{j}");
+    inst.stop();
+}
+on_both!(decomposition_killed_mid_run_gives_the_same_bits);

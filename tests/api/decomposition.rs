@@ -351,6 +351,85 @@ async fn large_decomposition_runs_as_a_job() {
     assert!((s2[mid] - s[mid]).abs() < 1e-4, "{} vs {}", s2[mid], s[mid]);
 }
 
+/// A long machining error: a slow wave, a 0.04-cycle/sample tone and pseudo-noise whose
+/// pattern depends on `seed`, mm.
+pub fn long_signal(n: usize, seed: usize) -> Vec<f64> {
+    (0..n)
+        .map(|k| {
+            let t = k as f64;
+            0.02 * (t / 3000.0).sin()
+                + 0.003 * (0.25 * t).sin()
+                + (((k * 7919 + seed * 104_729) % 1000) as f64 - 500.0) * 1e-5
+        })
+        .collect()
+}
+
+/// Submits a stored decomposition job (above the sync limit) and returns its id.
+async fn submit(app: &TestApp, body: &Value) -> String {
+    let r = app.post_json("/v1/decompose", body).await;
+    assert_eq!(r.status(), 202);
+    r.json::<Value>().await.unwrap()["job"]
+        .as_str()
+        .expect("job id")
+        .to_string()
+}
+
+/// Asserts two decomposition answers hold the same numbers, bit for bit.
+pub fn same_numbers(what: &str, a: &Value, b: &Value) {
+    for part in ["systematic", "random"] {
+        let (x, y) = (floats(&a[part]), floats(&b[part]));
+        assert_eq!(x.len(), y.len(), "{what}: {part} lengths");
+        if let Some(i) = (0..x.len()).find(|&i| x[i].to_bits() != y[i].to_bits()) {
+            panic!("{what}: {part}[{i}] {:e} vs {:e}", x[i], y[i]);
+        }
+    }
+    assert!(
+        a["components"] == b["components"] && a["outliers"] == b["outliers"],
+        "{what}: components {} vs {}",
+        a["components"],
+        b["components"]
+    );
+}
+
+/// Issue 25 (same input, same bits): a stored decomposition job run alone (its VMD split over
+/// two threads when the machine has two cores) and the same input run while two other
+/// decomposition jobs run beside it (then on one) give the same numbers bit for bit; the
+/// result and the direct answer name the version that computed them.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_decomposition_job_gives_the_same_bits_alone_or_beside_two_others() {
+    let app = spawn_app_with(|c| c.workers = Some(3)).await;
+    let n = 250_001;
+    // Fewer VMD iterations than the default keep three jobs side by side quick; the f32
+    // sweep and the split are the default ones.
+    let params = json!({"vmd": {"max_iter": 60}});
+    let body = json!({"signal": long_signal(n, 0), "params": params});
+    let alone = submit(&app, &body).await;
+    let alone = app.wait_job(&alone).await;
+    // The others first: jobs are claimed oldest first, so ours starts with both running.
+    let mut others = Vec::new();
+    for seed in [1, 2] {
+        let other = json!({"signal": long_signal(n, seed), "params": params});
+        others.push(submit(&app, &other).await);
+    }
+    let ours = submit(&app, &body).await;
+    let busy = app.wait_job(&ours).await;
+    for o in &others {
+        app.wait_job(o).await;
+    }
+    same_numbers(
+        "alone vs beside two others",
+        &alone["result"],
+        &busy["result"],
+    );
+    assert_eq!(alone["result"]["truecut_version"], truecut::version());
+    let r = app
+        .post_json("/v1/decompose", &json!({"signal": long_signal(300, 0)}))
+        .await;
+    assert_eq!(r.status(), 200);
+    let direct: Value = r.json().await.unwrap();
+    assert_eq!(direct["truecut_version"], truecut::version());
+}
+
 /// Probe flyers (openapi.yaml): the upload warns, the decomposition names them, and the
 /// compensation of every other point stays within 2 µm of the clean upload's.
 async fn probe_flyers_leave_the_compensation_alone(app: TestApp) {

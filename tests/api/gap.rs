@@ -50,6 +50,7 @@ async fn motion_backlash_found_located_and_validated(app: TestApp) {
     assert_eq!(r.status(), 200);
     let a: Value = r.json().await.unwrap();
     assert_eq!(a["verdict"], "backlash", "{}", a["effects"]);
+    assert_eq!(a["truecut_version"], truecut::version(), "issue 25");
     let before = a["gap_before"]["rms"].as_f64().unwrap();
     let after = a["gap_after"]["rms"].as_f64().unwrap();
     assert!(
@@ -352,6 +353,7 @@ async fn part_misalignment_found_with_regions_and_validation(app: TestApp) {
     assert_eq!(r.status(), 200);
     let a: Value = r.json().await.unwrap();
     assert_eq!(a["verdict"], "setup_misalignment", "{}", a["effects"]);
+    assert_eq!(a["truecut_version"], truecut::version(), "issue 25");
     assert_eq!(a["predicted_source"], "zero");
     let rz = a["effects"][0]["params"]["rz_rad"].as_f64().unwrap();
     assert!((rz - 80e-6).abs() < 10e-6, "{}", a["effects"][0]);

@@ -31,6 +31,7 @@ async fn fit_predict_and_describe(app: TestApp) {
     assert_eq!(r.status(), 201);
     let body: Value = r.json().await.unwrap();
     assert_eq!(body["requested"], "auto");
+    assert_eq!(body["truecut_version"], truecut::version(), "issue 25");
     assert_eq!(body["scores"].as_array().unwrap().len(), 4, "{body}");
     let chosen = body["model"].as_str().unwrap().to_string();
     assert!(body["parameter_count"].as_u64().unwrap() > 0);
@@ -283,6 +284,11 @@ async fn bad_input_is_4xx(app: TestApp) {
     // nothing partial was stored by the rejected PUTs: the kinematic map is still there
     let g: Value = app.get(MAP).await.json().await.unwrap();
     assert_eq!(g["model"], "kinematic");
+    assert_eq!(
+        g["truecut_version"],
+        truecut::version(),
+        "stored with the map"
+    );
 }
 on_both_backends!(bad_input_is_4xx);
 

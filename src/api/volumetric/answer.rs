@@ -37,6 +37,7 @@ pub(super) fn summary(map: &VolumetricMap) -> serde_json::Value {
         "bounds": map.bounds,
         "tool_offset_mm": map.options.tool_offset_mm,
         "units": {"lengths": "mm", "errors": "mm", "cv_rms_mm": "mm"},
+        "truecut_version": map.truecut_version,
     })
 }
 

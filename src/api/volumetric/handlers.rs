@@ -126,10 +126,11 @@ pub(super) async fn put_map(
         .ok()
         .flatten()
         .is_some();
-    let map = state
+    let mut map = state
         .jobs
         .run(move || volumetric::fit(&data, &options))
         .await??;
+    map.truecut_version = Some(crate::version().to_string());
     state
         .store
         .models()

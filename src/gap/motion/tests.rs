@@ -246,3 +246,37 @@ fn rejects_bad_shapes_and_values_with_the_field_named() {
         Err(Error::Servo { axis, .. }) if axis == "X"
     ));
 }
+
+/// Issue 25 (same input, same bits): one diagnosis with its effect fits on one thread, on
+/// two (a dynamic queue hands the effects out, and the shared re-simulation cache fills in
+/// whatever order the threads reach it), and two diagnoses at once on two threads give the
+/// same bits in every number (compared through `Debug`, which prints each f64 in its
+/// shortest round-trip digits).
+#[test]
+fn diagnosis_is_bit_identical_on_one_thread_two_or_beside_another() {
+    let servo = servo();
+    let cmd = circle(1.0);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(29);
+    let truth = Truth::Backlash(vec![0.008, 0.004], true);
+    let meas = measure(&servo, &truth, &cmd, 0.001, 0.0003, &mut rng);
+    let block = MotionBlock {
+        commanded: cmd,
+        measured: meas,
+    };
+    let run = |threads: usize| {
+        let opts = MotionOptions {
+            threads,
+            ..MotionOptions::default()
+        };
+        let d = diagnose_motion(&names(), &servo, 0.001, &block, None, &opts).unwrap();
+        format!("{d:?}")
+    };
+    let one = run(1);
+    assert!(run(2) == one, "two threads differ from one");
+    let (a, b) = std::thread::scope(|s| {
+        let other = s.spawn(|| run(2));
+        let here = run(1);
+        (other.join().unwrap(), here)
+    });
+    assert!(a == one && b == one, "a diagnosis beside another differs");
+}

@@ -1,16 +1,15 @@
-//! The ADMM iteration of VMD (Dragomiretskiy & Zosso 2014, Algorithm 2): parameters and
-//! their validation, the mirror extension and transforms around the iteration, the
-//! iteration itself in coefficient form, and the automatic choice of K.
+//! VMD by ADMM (Dragomiretskiy & Zosso 2014, Algorithm 2): parameters and their validation,
+//! the mirror extension and transforms around the iteration, and the automatic choice of K.
 //!
-//! Written here (no crate): vmd-rs is an unreviewed port (DESIGN.md). Each iteration's pass
-//! over the spectrum is in [`super::sweep`].
+//! Written here (no crate): vmd-rs is an unreviewed port (DESIGN.md). The iteration itself
+//! (coefficient form, its split over two threads) is in [`super::iteration`], each
+//! iteration's pass over the spectrum in [`super::sweep`].
 
-use super::sweep::{Kernel, Real, Sums, kernel_f32, kernel_f64};
-use crate::numeric::parallel::{self, Lockstep};
+use super::iteration::admm;
+use super::sweep::{kernel_f32, kernel_f64};
 use crate::signal::error::{Error, check_signal};
 use rustfft::num_complex::Complex;
 use serde::{Deserialize, Serialize};
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// VMD parameters (names as vmdpy / Zosso's MATLAB code).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -100,209 +99,9 @@ impl VmdParams {
     }
 }
 
-/// Spectra at least this long (bins; signals of at least this many samples) are iterated by
-/// two threads in lockstep (see [`admm`]) when the machine has two cores. One sweep of 1,024
-/// bins and 7 modes is a few microseconds, against one thread start per decomposition and one
-/// exchange per iteration. Measured on this project's 2-core Zen 3 machine (2,025 bins, K = 7,
-/// 190 iterations, 200 runs each, interleaved): best 2.29 → 1.52 ms, median 2.5–3.0 → 2.1–2.6
-/// ms.
-const PARALLEL_MIN_BINS: usize = 1_024;
-
 /// Spectra at least this long (bins; signals of at least this many samples) are iterated in
 /// f32 (see [`vmd`]).
 pub const F32_MIN_BINS: usize = 16_384;
-
-/// One side's share of the bins: the coefficient slices c_k, |f̂|², frequencies, and the
-/// target 1 − l/2 with the dual l (τ ≠ 0 only).
-struct Bins<'a, C> {
-    c: Vec<&'a mut [C]>,
-    power: &'a [C],
-    freqs: &'a [C],
-    target: Option<(&'a mut [C], &'a mut [f64])>,
-}
-
-/// The ADMM iteration of [`vmd`] in coefficient form. Every update multiplies f̂(b) by a
-/// real number, so from û = 0 and λ̂ = 0 every iterate is û_k(b) = c_k(b)·f̂(b) and
-/// λ̂(b) = l(b)·f̂(b) with real c_k and l: the iteration runs on the c_k (half the memory
-/// of complex modes), weighted by `power` = |f̂(b)|² in the sums. Updates `omega`; returns
-/// the c_k (as f64), the iteration count and the last convergence measure.
-///
-/// From [`PARALLEL_MIN_BINS`] bins on two cores, the bins are split in two halves iterated
-/// by two threads in lockstep ([`Lockstep`]): every bin's update needs only that bin and
-/// ω, so each thread sweeps its half, the two per-mode sums are exchanged and both threads
-/// compute the same ω and stopping measure from sums(lower half) + sums(upper half). The
-/// result is the single-threaded one up to the order of those two partial sums (checked by
-/// `split_iteration_matches_single_thread`).
-///
-/// Only a run that starts while no other VMD run and no other decomposition is in progress in
-/// the process splits: when the service's workers are all decomposing, the cores are already
-/// busy, and a second thread per run only adds waiting at the exchange. Measured with
-/// `bench/overload.sh` (2 workers, 8-64 connections; BENCHMARKS.md): goodput 76-78/s before
-/// the split, 50-58/s splitting always, 64-74/s splitting when no other VMD runs.
-pub(super) fn admm<C: Real>(
-    kernel: Kernel<C>,
-    power: &[f64],
-    freqs: &[f64],
-    omega: &mut [f64],
-    params: &VmdParams,
-) -> (Vec<Vec<f64>>, usize, f64) {
-    // Runs of this iteration in progress in the process, this one included.
-    static RUNNING: AtomicUsize = AtomicUsize::new(0);
-    struct Running;
-    impl Drop for Running {
-        fn drop(&mut self) {
-            RUNNING.fetch_sub(1, Ordering::Relaxed);
-        }
-    }
-    let alone = RUNNING.fetch_add(1, Ordering::Relaxed) == 0
-        && crate::signal::decompose::decompositions_running() <= 1;
-    let _running = Running;
-    let threads = if alone && power.len() >= PARALLEL_MIN_BINS {
-        parallel::resolve_threads(0).min(2)
-    } else {
-        1
-    };
-    admm_on(kernel, power, freqs, omega, params, threads)
-}
-
-/// [`admm`] on `threads` threads (1, or 2 in lockstep).
-pub(super) fn admm_on<C: Real>(
-    kernel: Kernel<C>,
-    power: &[f64],
-    freqs: &[f64],
-    omega: &mut [f64],
-    params: &VmdParams,
-    threads: usize,
-) -> (Vec<Vec<f64>>, usize, f64) {
-    let m = power.len();
-    let t = 2 * m;
-    let k_modes = omega.len();
-    let power: Vec<C> = power.iter().map(|&v| C::from64(v)).collect();
-    let freqs: Vec<C> = freqs.iter().map(|&v| C::from64(v)).collect();
-    let mut dual = vec![0.0; m];
-    let mut target: Option<Vec<C>> = (params.tau != 0.0).then(|| vec![C::from64(1.0); m]);
-    let mut c = vec![vec![C::default(); m]; k_modes];
-    let mid = m / 2 / 8 * 8;
-    let (iterations, u_diff) = if threads < 2 || mid == 0 {
-        let bins = Bins {
-            c: c.iter_mut().map(|v| v.as_mut_slice()).collect(),
-            power: &power,
-            freqs: &freqs,
-            target: target.as_deref_mut().map(|tc| (tc, dual.as_mut_slice())),
-        };
-        iterate(kernel, bins, omega, t, params, None)
-    } else {
-        let (ca, cb): (Vec<&mut [C]>, Vec<&mut [C]>) =
-            c.iter_mut().map(|v| v.split_at_mut(mid)).unzip();
-        let (targets_a, targets_b) = match target.as_deref_mut() {
-            Some(tc) => {
-                let (ta, tb) = tc.split_at_mut(mid);
-                let (da, db) = dual.split_at_mut(mid);
-                (Some((ta, da)), Some((tb, db)))
-            }
-            None => (None, None),
-        };
-        let lower = Bins {
-            c: ca,
-            power: &power[..mid],
-            freqs: &freqs[..mid],
-            target: targets_a,
-        };
-        let upper = Bins {
-            c: cb,
-            power: &power[mid..],
-            freqs: &freqs[mid..],
-            target: targets_b,
-        };
-        let lockstep = Lockstep::new();
-        let mut omega_b = omega.to_vec();
-        let (b, a) = parallel::join(
-            || iterate(kernel, upper, &mut omega_b, t, params, Some((&lockstep, 1))),
-            || iterate(kernel, lower, omega, t, params, Some((&lockstep, 0))),
-        );
-        let b = b.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
-        debug_assert!(b.0 == a.0 && omega_b == omega, "the two sides agree");
-        a
-    };
-    let c = c
-        .into_iter()
-        .map(|v| v.into_iter().map(Real::to64).collect())
-        .collect();
-    (c, iterations, u_diff)
-}
-
-/// The iteration loop of [`admm_on`] over one side's bins (all of them, or one half with its
-/// `lockstep` partner): returns the iteration count and the last convergence measure. `t` is
-/// the mirrored signal's length T (the whole spectrum's, 2 × all bins).
-fn iterate<C: Real>(
-    kernel: Kernel<C>,
-    mut bins: Bins<'_, C>,
-    omega: &mut [f64],
-    t: usize,
-    params: &VmdParams,
-    lockstep: Option<(&Lockstep<Sums>, usize)>,
-) -> (usize, f64) {
-    let k_modes = omega.len();
-    let guard = lockstep.map(|(l, _)| l.guard());
-    let mut iterations = 0;
-    let mut u_diff = f64::INFINITY;
-    // ‖û_k^n‖² of the iterate before the sweep (the sweep returns that of the new one).
-    let mut prev_den = vec![0.0; k_modes];
-    while iterations < params.max_iter.saturating_sub(1) && u_diff > params.tol {
-        let mut mine = Sums::new(k_modes);
-        kernel(
-            &mut bins.c,
-            bins.power,
-            bins.target.as_ref().map(|(tc, _)| &**tc),
-            bins.freqs,
-            omega,
-            params.alpha,
-            &mut mine,
-        );
-        let sums = match lockstep {
-            None => mine,
-            Some((l, side)) => {
-                let (lower, upper) = l.exchange(side, iterations, mine);
-                let mut sums = Sums::new(k_modes);
-                sums.add(&lower);
-                sums.add(&upper);
-                sums
-            }
-        };
-        for (k, om) in omega.iter_mut().enumerate() {
-            if !(params.dc && k == 0) && sums.den[k] > 0.0 {
-                *om = sums.num[k] / sums.den[k];
-            }
-        }
-        if let Some((tc, dual)) = bins.target.as_mut() {
-            for b in 0..tc.len() {
-                let s: f64 = (0..k_modes).map(|k| bins.c[k][b].to64()).sum();
-                dual[b] += params.tau * (s - 1.0);
-                tc[b] = C::from64(1.0 - 0.5 * dual[b]);
-            }
-        }
-        iterations += 1;
-        u_diff = match params.convergence {
-            Convergence::Absolute => f64::EPSILON + sums.dif.iter().sum::<f64>() / t as f64,
-            // A mode that was zero has not converged unless it is still zero.
-            Convergence::Relative => sums
-                .dif
-                .iter()
-                .zip(&prev_den)
-                .map(|(&d, &e)| match (d > 0.0, e > 0.0) {
-                    (_, true) => d / e,
-                    (false, false) => 0.0,
-                    (true, false) => f64::INFINITY,
-                })
-                .sum(),
-        };
-        prev_den = sums.den;
-    }
-    if let Some(g) = guard {
-        g.leave();
-    }
-    (iterations, u_diff)
-}
 
 /// Output of [`vmd`].
 #[derive(Clone, Debug, Serialize)]
@@ -328,7 +127,7 @@ pub struct VmdResult {
 /// returns the one before, a 1e-5 mm difference on Chen et al. 2024's signal).
 ///
 /// Arithmetic: the iteration runs on real coefficients c_k with û_k = c_k·f̂ (exact, see
-/// `admm`), in f64 below [`F32_MIN_BINS`] bins and in f32 from there on (signals of at
+/// `iteration::admm`), in f64 below [`F32_MIN_BINS`] bins and in f32 from there on (signals of at
 /// least 16,384 samples: the sweep is bound by memory and division throughput, and f32
 /// halves both). Measured on Chen et al. 2024's signal at 250,000 samples: the f32 modes differ
 /// from the f64 ones by at most 1.4e-8 mm (modes of rms 0.001-0.03 mm), and the same

@@ -5,11 +5,13 @@
 //! updates all K modes of a bin (mode k's Wiener filter uses only bin-local sums and the
 //! previous ω_k, so the bin loop and the mode loop commute), which keeps the work in cache.
 //!
-//! Files: `admm` (parameters and their validation, the iteration, the automatic choice of K),
+//! Files: `admm` (parameters and their validation, the transforms, the automatic choice of
+//! K), `iteration` (the ADMM loop and its split over two threads, same bits either way),
 //! `sweep` (one pass over the spectrum: the portable kernel and one AVX2 kernel serving
 //! f64 and f32) and `lanes` (the AVX2 register operations over the lane type).
 
 mod admm;
+mod iteration;
 #[cfg(target_arch = "x86_64")]
 mod lanes;
 mod sweep;
@@ -19,3 +21,4 @@ mod tests;
 pub use admm::{
     Convergence, F32_MIN_BINS, VmdParams, VmdResult, choose_k, mean_instantaneous_frequency, vmd,
 };
+pub use iteration::with_threads;

@@ -138,5 +138,6 @@ pub fn fit(data: &VolumetricData, options: &FitOptions) -> Result<VolumetricMap,
         fit_rms_mm,
         components,
         options: options.clone(),
+        truecut_version: None,
     })
 }

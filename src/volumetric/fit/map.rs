@@ -30,6 +30,10 @@ pub struct VolumetricMap {
     pub components: Option<KinematicModel>,
     /// The options the map was fitted with.
     pub options: FitOptions,
+    /// The version of truecut that fitted it, when the caller recorded it (the service does;
+    /// maps saved before issue 25 have none).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub truecut_version: Option<String>,
 }
 
 /// Errors predicted at query points, with the points outside the measured box flagged.

@@ -316,3 +316,23 @@ fn rejects_bad_options_and_data() {
         Err(Error::TooFewNodes { .. })
     ));
 }
+
+/// Issue 25 (same input, same bits): the automatic fit (every model kind cross-validated, the
+/// two network kinds on a second thread) of the same data, run twice alone and twice at once
+/// on two threads, stores the same bytes each time: the scores, the chosen model and every
+/// parameter.
+#[test]
+fn the_same_data_fits_the_same_bits_alone_or_concurrently() {
+    let m = SyntheticMachine::new(22, ShapeFamily::TrendAndWaviness);
+    let d = m.measure_grid([4, 4, 3], 22);
+    let o = quick(ModelKind::Auto, &m);
+    let first = fit(&d, &o).unwrap().to_bytes();
+    let second = fit(&d, &o).unwrap().to_bytes();
+    assert!(first == second, "two runs alone differ");
+    let (a, b) = std::thread::scope(|s| {
+        let other = s.spawn(|| fit(&d, &o).unwrap().to_bytes());
+        let here = fit(&d, &o).unwrap().to_bytes();
+        (other.join().unwrap(), here)
+    });
+    assert!(a == first && b == first, "a run beside another differs");
+}
