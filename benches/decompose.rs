@@ -19,8 +19,9 @@
 //!
 //! `-- --split` (with `--sizes`, `--reps`) times instead VMD alone and the default pipeline
 //! with the VMD pinned to one thread and to two (`truecut::signal::vmd::with_threads`),
-//! interleaved in the same run, and prints the one-thread / two-thread ratios (issue 25: the
-//! two give the same bits, so the split is a matter of speed only).
+//! interleaved in the same run, and prints the one-thread / two-thread ratios and how many
+//! systematic samples differ between the two and by how much (issue 25: none, so the split
+//! is a matter of speed only).
 //!
 //! Times are the best of `reps` runs (the machine is shared: the minimum is the least
 //! disturbed run).
@@ -192,21 +193,34 @@ fn split(sizes: &[usize], reps: usize) {
         let (p, vp) = (DecomposeParams::default(), VmdParams::default());
         // best[stage][threads - 1], stage 0 = VMD alone, 1 = the default pipeline
         let mut best = [[f64::INFINITY; 2]; 2];
+        let mut systematic: [Vec<f64>; 2] = Default::default();
         for _ in 0..reps {
             for threads in [1, 2] {
                 let v = time(1, || {
                     with_threads(threads, || vmd(&x, &vp)).expect("VMD");
                 });
                 let c = time(1, || {
-                    with_threads(threads, || decompose(&x, Method::CoarseToFine, &p))
-                        .expect("decomposes");
+                    systematic[threads - 1] =
+                        with_threads(threads, || decompose(&x, Method::CoarseToFine, &p))
+                            .expect("decomposes")
+                            .systematic;
                 });
                 best[0][threads - 1] = best[0][threads - 1].min(v);
                 best[1][threads - 1] = best[1][threads - 1].min(c);
             }
         }
+        let differ = systematic[0]
+            .iter()
+            .zip(&systematic[1])
+            .filter(|(a, b)| a.to_bits() != b.to_bits())
+            .count();
+        let max_diff = systematic[0]
+            .iter()
+            .zip(&systematic[1])
+            .map(|(a, b)| (a - b).abs())
+            .fold(0.0, f64::max);
         println!(
-            "{{\"n\": {n}, \"vmd_one_s\": {:.6}, \"vmd_two_s\": {:.6}, \"vmd_one_over_two\": {:.3}, \"c2f_one_s\": {:.6}, \"c2f_two_s\": {:.6}, \"c2f_one_over_two\": {:.3}}}",
+            "{{\"n\": {n}, \"vmd_one_s\": {:.6}, \"vmd_two_s\": {:.6}, \"vmd_one_over_two\": {:.3}, \"c2f_one_s\": {:.6}, \"c2f_two_s\": {:.6}, \"c2f_one_over_two\": {:.3}, \"systematic_samples_differing\": {differ}, \"systematic_max_diff_mm\": {max_diff:e}}}",
             best[0][0],
             best[0][1],
             best[0][0] / best[0][1],

@@ -107,7 +107,11 @@ async fn job_lifecycle(app: TestApp) {
     }
     assert_eq!(seen["state"], "done", "{seen}");
     assert_eq!(seen["progress"], 1.0);
-    assert_eq!(seen["result"], json!({"answer": 42}));
+    // A result object names the version that computed it (issue 25).
+    assert_eq!(
+        seen["result"],
+        json!({"answer": 42, "truecut_version": truecut::version()})
+    );
     assert_eq!(seen["kind"], "test-work");
 
     // Failures and panics end as failed with a reason.
