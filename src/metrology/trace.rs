@@ -1,24 +1,42 @@
-//! ISO 230-2 from a logged positioning run: the command and the laser (or scale) reading,
-//! sampled every `period_s`. The service finds what an operator would read off the plot:
+//! ISO 230-2 from a logged positioning run, as drives really log it: the command and the laser
+//! (or scale) reading, sampled every `period_s`. The service reads what an operator reads off
+//! the plot, and takes the time of each reading from the *measured* motion, never from the
+//! command's: a drive logs the command as the target itself, written when the move starts, so
+//! the command already equals the target while a slow axis is still travelling (a reader that
+//! averaged the command's hold read −1.4 mm forward and +1.4 mm backward on such a log), and a
+//! measuring device with its own sample clock drifts against the command's sample index.
 //!
-//! 1. **Dwells**: runs where the command holds still for at least `min_dwell_s`.
-//! 2. **Approach direction** of each dwell: the sign of the last command motion before it, so
-//!    a target approached through an overtravel and a reversal (ISO 230-2:2014 §5.3.2, the
-//!    standard's linear cycle) counts in the direction of its final approach.
-//! 3. **Targets**: dwell positions grouped within `target_tolerance_mm`; a group reached from
-//!    one direction only (a turnaround or overtravel point where the program paused, the
-//!    start or end position) is not a target and is listed among the ignored dwells.
-//! 4. **Settled reading**: the mean of the dwell's tail from the first sample after which the
-//!    reading stays inside a band about the tail's median (4 robust σ of the last third of
-//!    the dwell, at least `settle_floor_mm`); the settling before it and the motion are
-//!    ignored. A dwell whose tail is shorter than three samples did not settle and is ignored.
+//! 1. **Commanded approaches** (`Visit`): runs where the command holds one position for at
+//!    least `min_dwell_s`; positions within `target_tolerance_mm` are one. The direction of an
+//!    approach is the sign of the last command motion before it, so a target approached
+//!    through an overrun and a reversal (ISO 230-2:2014 §5.3.2, the linear cycle) counts in the
+//!    direction of its final approach.
+//! 2. **Targets**: positions approached at least twice from each direction; the start point
+//!    and the overrun (turnaround) points are approached from one side and are not targets.
+//! 3. **Settled stops** of the measured position (`settle.rs`): samples where the speed over a
+//!    window of `min_settled_s` centred on them is at most `settle_speed_mm_s`; the reading is
+//!    the mean over the stop's settled samples (the approach and the departure are left out).
+//! 4. **Matching** (`matching.rs`): stops and approaches in time order, by position only (less
+//!    the measuring device's constant offset, found as the shift that puts the most stops on
+//!    commanded positions). The offset is reported and kept in the readings: a constant shifts
+//!    every mean deviation x̄ alike and leaves A, E, M, R and B unchanged (each is a range, a
+//!    difference or a spread of the x̄ and the readings).
+//! 5. **Refusal**: a target with fewer readings in a direction than the command's approaches
+//!    in that direction (the cycles) is refused, naming the target and the direction.
 //!
-//! Every reading used and every dwell ignored is reported with its sample range, so the
+//! Every reading used (with its settled window) and every stop not used is reported, so the
 //! caller can check the choice on the plot. Written here: no crate reads machine-tool
 //! positioning logs.
 
+mod matching;
+mod settle;
+
+pub use matching::{Visit, device_offset, match_stops, match_tolerance};
+pub use settle::{SAME_STOP_MM, SettledRun, merge_stops, settled_runs};
+
 use super::error::Error;
 use super::iso230_2::{Axis230_2, PositionTable, evaluate_table};
+use matching::Matched;
 
 /// A logged positioning run of one axis.
 #[derive(Clone, Debug, PartialEq)]
@@ -27,19 +45,22 @@ pub struct PositioningTrace {
     pub period_s: f64,
     /// Commanded position per sample, mm.
     pub commanded_mm: Vec<f64>,
-    /// Measured position per sample (laser interferometer or scale), mm.
+    /// Measured position per sample (laser interferometer or scale), mm. Its samples need not
+    /// be simultaneous with the command's (the device may have its own clock).
     pub measured_mm: Vec<f64>,
 }
 
-/// How dwells are found and read.
+/// How approaches are found and readings taken.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct TraceOptions {
-    /// Shortest hold of the command that counts as a dwell, s (default 0.1).
+    /// Shortest hold of the command that counts as a commanded approach, s (default 0.1).
     pub min_dwell_s: f64,
-    /// Dwell positions closer than this are one target, mm (default 0.001).
+    /// Commanded positions closer than this are one, mm (default 0.001).
     pub target_tolerance_mm: f64,
-    /// Narrowest settling band, mm (default 0.00001 = 10 nm, a laser's resolution).
-    pub settle_floor_mm: f64,
+    /// The measured position has settled while it moves slower than this, mm/s (default 0.01).
+    pub settle_speed_mm_s: f64,
+    /// ... for at least this long (the window the speed is judged over), s (default 0.3).
+    pub min_settled_s: f64,
 }
 
 impl Default for TraceOptions {
@@ -47,27 +68,10 @@ impl Default for TraceOptions {
         TraceOptions {
             min_dwell_s: 0.1,
             target_tolerance_mm: 0.001,
-            settle_floor_mm: 1e-5,
+            settle_speed_mm_s: 0.01,
+            min_settled_s: 0.3,
         }
     }
-}
-
-/// One dwell found in the run.
-#[derive(Clone, Debug, PartialEq)]
-pub struct Dwell {
-    /// First sample of the dwell (the command holds from here).
-    pub start: usize,
-    /// One past its last sample.
-    pub end: usize,
-    /// The commanded position held, mm.
-    pub commanded_mm: f64,
-    /// Direction of the final approach: `Some(true)` positive, `Some(false)` negative,
-    /// `None` when the command never moved before it.
-    pub forward: Option<bool>,
-    /// First sample of the settled tail, if it settled.
-    pub settled_start: Option<usize>,
-    /// Mean measured position over the settled tail, mm.
-    pub reading_mm: Option<f64>,
 }
 
 /// A reading the evaluation used.
@@ -79,12 +83,28 @@ pub struct TraceReading {
     pub forward: bool,
     /// Cycle number in that direction at that target (0-based, in time order).
     pub cycle: usize,
-    /// The dwell's samples `[start, end)`.
-    pub dwell: [usize; 2],
-    /// The settled samples averaged, `[start, end)`.
+    /// The command's hold this reading answers, `[start, end)` in command samples.
+    pub command: [usize; 2],
+    /// The settled samples averaged, `[start, end)` in measured samples.
     pub settled: [usize; 2],
-    /// The reading, mm.
+    /// The reading (mean measured position over the settled samples), mm.
     pub reading_mm: f64,
+}
+
+/// The settling rule used and what the matching found.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Settling {
+    /// Speed threshold, mm/s.
+    pub settle_speed_mm_s: f64,
+    /// Minimum settled time, s.
+    pub min_settled_s: f64,
+    /// The speed window actually used, s (2h + 1 samples).
+    pub window_s: f64,
+    /// How far a stop may sit from a commanded position, mm.
+    pub match_tolerance_mm: f64,
+    /// Median of reading − target over the readings used, mm: the measuring device's offset
+    /// plus the axis' mean deviation (it changes no figure).
+    pub measured_offset_mm: f64,
 }
 
 /// The evaluation of a logged run: the ISO 230-2 figures and what was read.
@@ -96,8 +116,10 @@ pub struct TraceEvaluation {
     pub table: PositionTable,
     /// Every reading used, in time order.
     pub used: Vec<TraceReading>,
-    /// Dwells not used: `(start, end, reason)`.
+    /// Settled stops not used: `(start, end, reason)` in measured samples.
     pub ignored: Vec<(usize, usize, String)>,
+    /// The settling rule and the matching.
+    pub settling: Settling,
 }
 
 fn check(trace: &PositioningTrace, opts: &TraceOptions) -> Result<(), Error> {
@@ -139,159 +161,170 @@ fn check(trace: &PositioningTrace, opts: &TraceOptions) -> Result<(), Error> {
         opts.target_tolerance_mm,
         "a distance > 0 mm",
     )?;
-    positive("settle_floor_mm", opts.settle_floor_mm, "a distance > 0 mm")
+    positive(
+        "settle_speed_mm_s",
+        opts.settle_speed_mm_s,
+        "a speed > 0 mm/s",
+    )?;
+    positive("min_settled_s", opts.min_settled_s, "a duration > 0 s")
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(f64::total_cmp);
-    let k = v.len() / 2;
-    if v.len() % 2 == 1 {
-        v[k]
-    } else {
-        0.5 * (v[k - 1] + v[k])
-    }
-}
-
-/// The first sample of the settled tail of `y` (see the module docs), or `None`.
-fn settled_from(y: &[f64], floor_mm: f64) -> Option<usize> {
-    let tail = &y[y.len() - (y.len() / 3).max(1)..];
-    let centre = median(&mut tail.to_vec());
-    let mut abs: Vec<f64> = tail.iter().map(|v| (v - centre).abs()).collect();
-    let band = (4.0 * 1.4826 * median(&mut abs)).max(floor_mm);
-    let last_out = y.iter().rposition(|v| (v - centre).abs() > band);
-    let from = last_out.map_or(0, |k| k + 1);
-    (y.len() - from >= 3).then_some(from)
-}
-
-/// Finds the dwells of a run (see the module docs).
-pub fn find_dwells(trace: &PositioningTrace, opts: &TraceOptions) -> Vec<Dwell> {
+/// The commanded approaches of a run (see the module docs) and the sorted distinct commanded
+/// positions their `position` indexes.
+pub fn find_visits(trace: &PositioningTrace, opts: &TraceOptions) -> (Vec<Visit>, Vec<f64>) {
     let c = &trace.commanded_mm;
-    let min_len = ((opts.min_dwell_s / trace.period_s).ceil() as usize).max(3);
+    let min_len = (opts.min_dwell_s / trace.period_s).ceil().max(2.0);
     let still = |k: usize| (c[k] - c[k - 1]).abs() <= 1e-12 * (1.0 + c[k].abs());
-    let mut dwells = Vec::new();
+    let mut visits = Vec::new();
     let mut last_dir: Option<bool> = None;
-    let mut k = 1;
     let mut start = 0;
-    while k <= c.len() {
+    for k in 1..=c.len() {
         if k < c.len() && still(k) {
-            k += 1;
             continue;
         }
-        // [start, k) holds the command still.
-        if k - start >= min_len {
-            let y = &trace.measured_mm[start..k];
-            let settled = settled_from(y, opts.settle_floor_mm).map(|s| start + s);
-            let reading = settled.map(|s| {
-                let tail = &trace.measured_mm[s..k];
-                tail.iter().sum::<f64>() / tail.len() as f64
-            });
-            dwells.push(Dwell {
+        if (k - start) as f64 >= min_len {
+            visits.push(Visit {
                 start,
                 end: k,
                 commanded_mm: c[start],
+                position: 0,
                 forward: last_dir,
-                settled_start: settled,
-                reading_mm: reading,
             });
         }
         if k < c.len() {
             last_dir = Some(c[k] > c[k - 1]);
         }
         start = k;
-        k += 1;
     }
-    dwells
+    let mut held: Vec<f64> = visits.iter().map(|v| v.commanded_mm).collect();
+    held.sort_by(f64::total_cmp);
+    let mut positions: Vec<f64> = Vec::new();
+    for p in held {
+        if positions
+            .last()
+            .is_none_or(|q| p - q > opts.target_tolerance_mm)
+        {
+            positions.push(p);
+        }
+    }
+    for v in &mut visits {
+        let i = positions.partition_point(|&p| p <= v.commanded_mm + opts.target_tolerance_mm);
+        v.position = i - 1;
+    }
+    (visits, positions)
 }
 
-/// Evaluates a logged positioning run by ISO 230-2:2014 (see the module docs for how the
-/// targets, directions and settled readings are found, and [`evaluate_table`] for the
-/// figures). Errors: mismatched or non-finite arrays, bad options, and the table's own
-/// refusals (fewer than 2 targets approached from both sides, fewer than 2 cycles).
+/// Evaluates a logged positioning run by ISO 230-2:2014: readings where the measured position
+/// has settled, matched to the command's approaches (see the module docs), then
+/// [`evaluate_table`]. Errors: mismatched or non-finite arrays, bad options
+/// ([`Error::Invalid`]), a target with fewer readings than cycles in a direction
+/// ([`Error::MissingReadings`]), and the table's own refusals (fewer than 2 targets).
 ///
-/// Reference: ISO 230-2:2014 §5.3.2 (linear cycle, overtravel) and §3, §7.
+/// Formula: reading = mean of the measured position over a stop's settled samples; the
+/// figures are [`evaluate_table`]'s.
 ///
-/// Known bad cases: a command that creeps (never holds still) has no dwells; a reading
-/// that drifts through the whole dwell never settles inside the band and is ignored.
+/// Reference: ISO 230-2:2014 §5.3.2 (linear cycle, overrun) and §3, §7.
+///
+/// Known bad cases: a command that creeps (never holds still) has no approaches; an axis that
+/// never moves slower than `settle_speed_mm_s` for `min_settled_s` at a target is refused;
+/// a measured series counting against the command (a laser set up reversed) matches nothing.
 pub fn evaluate_trace(
     trace: &PositioningTrace,
     opts: &TraceOptions,
 ) -> Result<TraceEvaluation, Error> {
     check(trace, opts)?;
-    let dwells = find_dwells(trace, opts);
-    let mut ignored = Vec::new();
-    // Groups of dwell positions: (position, indices of the dwells in it).
-    let mut groups: Vec<(f64, Vec<usize>)> = Vec::new();
-    for (i, d) in dwells.iter().enumerate() {
-        if d.forward.is_none() {
-            ignored.push((
-                d.start,
-                d.end,
-                "no command motion before it (the start position)".into(),
-            ));
-            continue;
-        }
-        if d.reading_mm.is_none() {
-            ignored.push((
-                d.start,
-                d.end,
-                "the reading did not settle within the dwell".into(),
-            ));
-            continue;
-        }
-        match groups
-            .iter_mut()
-            .find(|(p, _)| (p - d.commanded_mm).abs() <= opts.target_tolerance_mm)
-        {
-            Some((_, members)) => members.push(i),
-            None => groups.push((d.commanded_mm, vec![i])),
+    let (visits, positions) = find_visits(trace, opts);
+    let y = &trace.measured_mm;
+    let runs = merge_stops(
+        y,
+        settled_runs(
+            y,
+            trace.period_s,
+            opts.settle_speed_mm_s,
+            opts.min_settled_s,
+        ),
+    );
+    let stops: Vec<f64> = runs.iter().map(|r| r.mean_mm).collect();
+    let tol = match_tolerance(&positions);
+    let offset = device_offset(&stops, &positions, tol);
+    let matched = match_stops(&stops, &visits, &positions, offset, tol);
+    // Approaches per position and direction (the cycles), and which are targets.
+    let mut count = vec![[0_usize; 2]; positions.len()];
+    for v in &visits {
+        if let Some(fwd) = v.forward {
+            count[v.position][usize::from(!fwd)] += 1;
         }
     }
-    groups.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let is_target = |g: usize| count[g][0] >= 2 && count[g][1] >= 2;
+    let mut ignored = Vec::new();
+    let mut answered = vec![None; visits.len()];
+    for (run, m) in runs.iter().zip(matched) {
+        let why = match m {
+            Matched::Unused(why) => why,
+            Matched::Visit(v) => {
+                let visit = &visits[v];
+                let g = visit.position;
+                match visit.forward {
+                    None => "the start position: no command motion before it".into(),
+                    Some(_) if !is_target(g) => format!(
+                        "{} mm is approached {} times in the positive and {} in the negative \
+                         direction: a start, end or turnaround point, not a target",
+                        positions[g], count[g][0], count[g][1]
+                    ),
+                    Some(_) => {
+                        answered[v] = Some(run);
+                        continue;
+                    }
+                }
+            }
+        };
+        ignored.push((run.start, run.end, why));
+    }
     let mut table = PositionTable {
         targets_mm: Vec::new(),
         forward_mm: Vec::new(),
         backward_mm: Vec::new(),
     };
     let mut used = Vec::new();
-    let dwells = &dwells;
-    for (position, members) in groups {
-        let members = &members;
-        let dir = |fwd: bool| {
-            members
-                .iter()
-                .filter(move |&&i| dwells[i].forward == Some(fwd))
-        };
-        if dir(true).next().is_none() || dir(false).next().is_none() {
-            let from = if dir(true).next().is_some() {
-                "positive"
-            } else {
-                "negative"
-            };
-            for &i in members {
-                ignored.push((
-                    dwells[i].start,
-                    dwells[i].end,
-                    format!(
-                        "{position} mm is approached only from the {from} direction: a turnaround or end point, not a target"
-                    ),
-                ));
-            }
+    for (g, &position) in positions.iter().enumerate() {
+        if !is_target(g) {
             continue;
         }
         table.targets_mm.push(position);
         for fwd in [true, false] {
+            let approaches = visits
+                .iter()
+                .enumerate()
+                .filter(|(_, v)| v.position == g && v.forward == Some(fwd));
             let mut row = Vec::new();
-            for (cycle, &i) in dir(fwd).enumerate() {
-                let d = &dwells[i];
-                let reading = d.reading_mm.unwrap_or(f64::NAN);
-                row.push(reading);
-                used.push(TraceReading {
+            let mut first_missing = None;
+            for (v, visit) in approaches {
+                match answered[v] {
+                    Some(run) => {
+                        used.push(TraceReading {
+                            target_mm: position,
+                            forward: fwd,
+                            cycle: row.len(),
+                            command: [visit.start, visit.end],
+                            settled: [run.start, run.end],
+                            reading_mm: run.mean_mm,
+                        });
+                        row.push(run.mean_mm);
+                    }
+                    None => {
+                        first_missing.get_or_insert(visit.start);
+                    }
+                }
+            }
+            if let Some(command_sample) = first_missing {
+                return Err(Error::MissingReadings {
                     target_mm: position,
-                    forward: fwd,
-                    cycle,
-                    dwell: [d.start, d.end],
-                    settled: [d.settled_start.unwrap_or(d.start), d.end],
-                    reading_mm: reading,
+                    direction: if fwd { "forward" } else { "backward" },
+                    got: row.len(),
+                    expected: count[g][usize::from(!fwd)],
+                    command_sample,
+                    settle_speed_mm_s: opts.settle_speed_mm_s,
+                    min_settled_s: opts.min_settled_s,
                 });
             }
             if fwd {
@@ -301,16 +334,27 @@ pub fn evaluate_trace(
             }
         }
     }
-    used.sort_by_key(|r| r.dwell[0]);
-    ignored.sort_by_key(|r| r.0);
+    used.sort_by_key(|r| r.settled[0]);
     let axis = evaluate_table(&table)?;
+    let mut offsets: Vec<f64> = used.iter().map(|r| r.reading_mm - r.target_mm).collect();
+    offsets.sort_by(f64::total_cmp);
+    let h = settle::half_window(trace.period_s, opts.min_settled_s, y.len());
     Ok(TraceEvaluation {
         axis,
         table,
         used,
         ignored,
+        settling: Settling {
+            settle_speed_mm_s: opts.settle_speed_mm_s,
+            min_settled_s: opts.min_settled_s,
+            window_s: (2 * h + 1) as f64 * trace.period_s,
+            match_tolerance_mm: tol,
+            measured_offset_mm: offsets.get(offsets.len() / 2).copied().unwrap_or(0.0),
+        },
     })
 }
 
+#[cfg(test)]
+mod simlog;
 #[cfg(test)]
 mod tests;
