@@ -31,7 +31,7 @@
 mod matching;
 mod settle;
 
-pub use matching::{Visit, device_offset, match_stops, match_tolerance};
+pub use matching::{Visit, device_offset, match_stops, match_tolerance, visits_by_position};
 pub use settle::{SAME_STOP_MM, SettledRun, merge_stops, settled_runs};
 
 use super::error::Error;
@@ -121,6 +121,9 @@ pub struct TraceEvaluation {
     /// The settling rule and the matching.
     pub settling: Settling,
 }
+
+/// Most targets a logged run is read into (the table's checks grow with their square).
+pub const MAX_TARGETS: usize = 10_000;
 
 fn check(trace: &PositioningTrace, opts: &TraceOptions) -> Result<(), Error> {
     let n = trace.commanded_mm.len();
@@ -247,7 +250,8 @@ pub fn evaluate_trace(
     let stops: Vec<f64> = runs.iter().map(|r| r.mean_mm).collect();
     let tol = match_tolerance(&positions);
     let offset = device_offset(&stops, &positions, tol);
-    let matched = match_stops(&stops, &visits, &positions, offset, tol);
+    let by_position = visits_by_position(&visits, positions.len());
+    let matched = match_stops(&stops, &by_position, &positions, offset, tol);
     // Approaches per position and direction (the cycles), and which are targets.
     let mut count = vec![[0_usize; 2]; positions.len()];
     for v in &visits {
@@ -291,11 +295,19 @@ pub fn evaluate_trace(
             continue;
         }
         table.targets_mm.push(position);
+        if table.targets_mm.len() > MAX_TARGETS {
+            return Err(Error::Invalid {
+                field: "commanded",
+                value: positions.len() as f64,
+                reason: "a logged run of at most 10000 targets (distinct commanded positions \
+                         approached twice from each side); send one axis' ISO 230-2 run",
+            });
+        }
         for fwd in [true, false] {
-            let approaches = visits
+            let approaches = by_position[g]
                 .iter()
-                .enumerate()
-                .filter(|(_, v)| v.position == g && v.forward == Some(fwd));
+                .map(|&v| (v, &visits[v]))
+                .filter(|(_, v)| v.forward == Some(fwd));
             let mut row = Vec::new();
             let mut first_missing = None;
             for (v, visit) in approaches {

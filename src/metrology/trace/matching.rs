@@ -50,14 +50,18 @@ pub fn match_tolerance(positions: &[f64]) -> f64 {
 
 /// Stops scored when searching the offset; more are subsampled evenly.
 const OFFSET_SCORED: usize = 2048;
-/// Stops (the first ones) whose distance to each commanded position is a candidate offset.
+/// Stops (the first ones) whose distance to commanded positions is a candidate offset.
 const OFFSET_SEEDS: usize = 8;
+/// Commanded positions per seed stop tried, on each side of the position nearest it (an
+/// ISO 230-2 run has tens of targets; this bounds the work on a log with many holds).
+const OFFSET_REACH: usize = 128;
 
 /// The constant offset of the measured positions from the commanded ones, mm, as the shift
 /// that brings the most stops within `tol` of a commanded position (ties: the smallest shift).
 ///
 /// Formula: o* = argmax_o #{k : min_p |y_k − o − p| ≤ tol}, o over y_k − p for the first
-/// [`OFFSET_SEEDS`] stops k and every position p.
+/// [`OFFSET_SEEDS`] stops k and every position p (the [`OFFSET_REACH`] nearest on each side
+/// when there are more).
 ///
 /// Known bad cases: evenly spaced targets and an offset of a whole spacing differ only at the
 /// end targets and the overrun points; ISO 230-2:2014 §5.2 spaces targets unevenly, which
@@ -76,7 +80,9 @@ pub fn device_offset(stops_mm: &[f64], positions: &[f64], tol: f64) -> f64 {
     };
     let mut best = (score(0.0), 0.0_f64);
     for &y in stops_mm.iter().take(OFFSET_SEEDS) {
-        for &p in positions {
+        let near = positions.partition_point(|&p| p < y);
+        let reach = near.saturating_sub(OFFSET_REACH)..(near + OFFSET_REACH).min(positions.len());
+        for &p in &positions[reach] {
             let o = y - p;
             let s = score(o);
             if s > best.0 || (s == best.0 && o.abs() < best.1.abs()) {
@@ -96,7 +102,16 @@ pub enum Matched {
     Unused(String),
 }
 
-/// Matches stops to visits in time order: each stop goes to the next visit (after the last one
+/// The visits (indices, in time order) of each commanded position.
+pub fn visits_by_position(visits: &[Visit], positions: usize) -> Vec<Vec<usize>> {
+    let mut by_position: Vec<Vec<usize>> = vec![Vec::new(); positions];
+    for (v, visit) in visits.iter().enumerate() {
+        by_position[visit.position].push(v);
+    }
+    by_position
+}
+
+/// Matches stops to visits (`by_position` from [`visits_by_position`]) in time order: each stop goes to the next visit (after the last one
 /// matched) of the commanded position within `tol` of the stop's position less `offset_mm`.
 /// Visits without a stop are skipped (an overrun passed without a pause, an approach the axis
 /// never finished).
@@ -105,15 +120,11 @@ pub enum Matched {
 /// skips the visits between; the cycle counts then fall short and the run is refused.
 pub fn match_stops(
     stops_mm: &[f64],
-    visits: &[Visit],
+    by_position: &[Vec<usize>],
     positions: &[f64],
     offset_mm: f64,
     tol: f64,
 ) -> Vec<Matched> {
-    let mut by_position: Vec<Vec<usize>> = vec![Vec::new(); positions.len()];
-    for (v, visit) in visits.iter().enumerate() {
-        by_position[visit.position].push(v);
-    }
     let mut next = 0;
     stops_mm
         .iter()
