@@ -7,6 +7,7 @@
 use super::simlog::{Command, Device, Drive, RunSpec, SimLog, simulate};
 use super::*;
 use crate::metrology::iso230_2::tests::hand_table;
+use crate::metrology::{Error, evaluate_table};
 
 const PERIOD_S: f64 = 0.01;
 const SPEED_MM_S: f64 = 50.0;
