@@ -72,8 +72,10 @@ pub async fn evaluate_2(
                 target_tolerance_mm: t
                     .target_tolerance_mm
                     .unwrap_or(defaults.target_tolerance_mm),
-                settle_floor_mm: t.settle_floor_mm.unwrap_or(defaults.settle_floor_mm),
+                settle_speed_mm_s: t.settle_speed_mm_s.unwrap_or(defaults.settle_speed_mm_s),
+                min_settled_s: t.min_settled_s.unwrap_or(defaults.min_settled_s),
             };
+            let period_s = t.period_s;
             let trace = PositioningTrace {
                 period_s: t.period_s,
                 commanded_mm: t.commanded,
@@ -83,7 +85,7 @@ pub async fn evaluate_2(
                 .jobs
                 .run(move || evaluate_trace(&trace, &opts))
                 .await??;
-            Ok((Iso2302Answer::from_trace(&ev), ev.table))
+            Ok((Iso2302Answer::from_trace(&ev, period_s), ev.table))
         }
         _ => Err(ApiError::bad_request(
             "send either the table {\"targets\": [mm], \"forward\": [[mm per cycle] per target], \

@@ -47,6 +47,13 @@ pub struct Args2 {
     /// Sampling period of a logged run without a `t` column, s.
     #[arg(long)]
     pub period_s: Option<f64>,
+    /// Logged run: the measured position has settled while it moves slower than this, mm/s
+    /// (default 0.01).
+    #[arg(long)]
+    pub settle_speed_mm_s: Option<f64>,
+    /// Logged run: ... for at least this long, s (default 0.3).
+    #[arg(long)]
+    pub min_settled_s: Option<f64>,
     /// Print the answer JSON instead of the table.
     #[arg(long)]
     pub json: bool,
@@ -270,6 +277,18 @@ fn post_json(
 /// Runs `truecut iso230-2`.
 pub fn run_2(args: Args2) -> anyhow::Result<()> {
     let mut req = read_230_2(&args.file, args.period_s)?;
+    match &mut req.trace {
+        Some(t) => {
+            t.settle_speed_mm_s = args.settle_speed_mm_s.or(t.settle_speed_mm_s);
+            t.min_settled_s = args.min_settled_s.or(t.min_settled_s);
+        }
+        None if args.settle_speed_mm_s.is_some() || args.min_settled_s.is_some() => bail!(
+            "--settle-speed-mm-s and --min-settled-s read a logged run (CSV commanded,measured); \
+             {} is a table",
+            args.file.display()
+        ),
+        None => {}
+    }
     let answer: serde_json::Value = match &args.server {
         None => {
             let answer = match &req.trace {
@@ -279,7 +298,14 @@ pub fn run_2(args: Args2) -> anyhow::Result<()> {
                         commanded_mm: t.commanded.clone(),
                         measured_mm: t.measured.clone(),
                     };
-                    Iso2302Answer::from_trace(&evaluate_trace(&trace, &TraceOptions::default())?)
+                    let d = TraceOptions::default();
+                    let opts = TraceOptions {
+                        min_dwell_s: t.min_dwell_s.unwrap_or(d.min_dwell_s),
+                        target_tolerance_mm: t.target_tolerance_mm.unwrap_or(d.target_tolerance_mm),
+                        settle_speed_mm_s: t.settle_speed_mm_s.unwrap_or(d.settle_speed_mm_s),
+                        min_settled_s: t.min_settled_s.unwrap_or(d.min_settled_s),
+                    };
+                    Iso2302Answer::from_trace(&evaluate_trace(&trace, &opts)?, t.period_s)
                 }
                 None => Iso2302Answer::from_axis(&evaluate_table(&PositionTable {
                     targets_mm: req.targets.clone().unwrap_or_default(),
@@ -357,9 +383,15 @@ pub fn format_230_2(a: &Iso2302Answer) -> String {
     }
     if let Some(used) = &a.used {
         s += &format!(
-            "{} readings used from the logged run, {} dwells ignored\n",
+            "{} readings used from the logged run, {} settled stops ignored\n",
             used.len(),
             a.ignored.as_ref().map_or(0, Vec::len)
+        );
+    }
+    if let Some(st) = &a.settling {
+        s += &format!(
+            "settled: slower than {} mm/s for {} s (window {:.3} s); measured offset {:.4} mm\n",
+            st.settle_speed_mm_s, st.min_settled_s, st.window_s, st.measured_offset_mm
         );
     }
     for w in &a.warnings {

@@ -45,6 +45,31 @@ pub enum Error {
         /// The repeated position, mm.
         value: f64,
     },
+    /// A logged run in which some commanded approaches to a target gave no settled reading.
+    #[error(
+        "target {target_mm} mm, {direction}: {got} settled readings, {expected} cycles expected \
+         (the command approaches it {expected} times; the approach commanded from sample \
+         {command_sample} has none). A reading needs the measured position to move slower than \
+         settle_speed_mm_s = {settle_speed_mm_s} mm/s for min_settled_s = {min_settled_s} s: \
+         raise settle_speed_mm_s or shorten min_settled_s, or cut the approaches the axis never \
+         finished out of the log"
+    )]
+    MissingReadings {
+        /// The target, mm.
+        target_mm: f64,
+        /// `forward` or `backward`.
+        direction: &'static str,
+        /// Settled readings found.
+        got: usize,
+        /// Approaches the command makes.
+        expected: usize,
+        /// First command sample of the first approach without a reading.
+        command_sample: usize,
+        /// The speed threshold used, mm/s.
+        settle_speed_mm_s: f64,
+        /// The minimum settled time used, s.
+        min_settled_s: f64,
+    },
     /// A parameter outside its range.
     #[error("{field} = {value} is out of range: {reason}")]
     Invalid {

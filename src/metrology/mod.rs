@@ -16,6 +16,6 @@ pub use error::Error;
 pub use iso230_2::{Axis230_2, PositionTable, Target230_2, evaluate_table};
 pub use iso230_4::{Circular230_4, Hysteresis, circular_hysteresis, evaluate_circle};
 pub use trace::{
-    Dwell, PositioningTrace, TraceEvaluation, TraceOptions, TraceReading, evaluate_trace,
-    find_dwells,
+    PositioningTrace, Settling, TraceEvaluation, TraceOptions, TraceReading, Visit, evaluate_trace,
+    find_visits,
 };

@@ -40,15 +40,18 @@ pub struct TraceBody {
     pub commanded: Vec<f64>,
     /// Measured position per sample (laser or scale), mm.
     pub measured: Vec<f64>,
-    /// Shortest hold of the command that counts as a dwell, s (default 0.1).
+    /// Shortest hold of the command that counts as a commanded approach, s (default 0.1).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub min_dwell_s: Option<f64>,
-    /// Dwell positions closer than this are one target, mm (default 0.001).
+    /// Commanded positions closer than this are one target, mm (default 0.001).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub target_tolerance_mm: Option<f64>,
-    /// Narrowest settling band, mm (default 0.00001).
+    /// The measured position has settled while it moves slower than this, mm/s (default 0.01).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub settle_floor_mm: Option<f64>,
+    pub settle_speed_mm_s: Option<f64>,
+    /// ... for at least this long, s (default 0.3).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub min_settled_s: Option<f64>,
 }
 
 /// One row of the per-target table, mm.
@@ -90,18 +93,37 @@ pub struct UsedReading {
     pub direction: String,
     /// Cycle number in that direction (0-based).
     pub cycle: usize,
-    /// Samples of the dwell, `[start, end)`.
+    /// The command's hold this reading answers, `[start, end)` in command samples.
     pub dwell: [usize; 2],
-    /// Settled samples averaged, `[start, end)`.
+    /// The settling window: settled samples averaged, `[start, end)` in measured samples.
     pub samples: [usize; 2],
+    /// The settling window in time, `[start, end)` s (sample × `period_s`).
+    #[serde(default)]
+    pub window_s: [f64; 2],
     /// The reading, mm.
     pub reading: f64,
 }
 
-/// A dwell of a logged run that was not used, and why.
+/// The settling rule a logged run was read with, and what the matching found.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct SettlingUsed {
+    /// Speed threshold, mm/s.
+    pub settle_speed_mm_s: f64,
+    /// Minimum settled time, s.
+    pub min_settled_s: f64,
+    /// Length of the centred window the speed is judged over, s.
+    pub window_s: f64,
+    /// How far a stop may sit from a commanded position to answer it, mm.
+    pub match_tolerance_mm: f64,
+    /// Median of reading − target, mm: the measuring device's offset plus the axis' mean
+    /// deviation. Kept in the readings (a constant changes no figure).
+    pub measured_offset_mm: f64,
+}
+
+/// A settled stop of a logged run that was not used, and why.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct IgnoredDwell {
-    /// Samples of the dwell, `[start, end)`.
+    /// Settled samples of the stop, `[start, end)` in measured samples.
     pub samples: [usize; 2],
     /// Why it was not used.
     pub reason: String,
@@ -144,9 +166,12 @@ pub struct Iso2302Answer {
     /// With a logged run: the readings used, in time order.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub used: Option<Vec<UsedReading>>,
-    /// With a logged run: the dwells not used.
+    /// With a logged run: the settled stops not used.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub ignored: Option<Vec<IgnoredDwell>>,
+    /// With a logged run: the settling rule used and the matching.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub settling: Option<SettlingUsed>,
 }
 
 impl Iso2302Answer {
@@ -187,11 +212,12 @@ impl Iso2302Answer {
             standard: "ISO 230-2:2014".into(),
             used: None,
             ignored: None,
+            settling: None,
         }
     }
 
     /// The answer for an evaluated logged run (with `used` and `ignored`).
-    pub fn from_trace(ev: &TraceEvaluation) -> Self {
+    pub fn from_trace(ev: &TraceEvaluation, period_s: f64) -> Self {
         let mut answer = Self::from_axis(&ev.axis);
         answer.used = Some(
             ev.used
@@ -200,8 +226,9 @@ impl Iso2302Answer {
                     target: r.target_mm,
                     direction: if r.forward { "fwd" } else { "bwd" }.into(),
                     cycle: r.cycle,
-                    dwell: r.dwell,
+                    dwell: r.command,
                     samples: r.settled,
+                    window_s: r.settled.map(|k| k as f64 * period_s),
                     reading: r.reading_mm,
                 })
                 .collect(),
@@ -215,6 +242,14 @@ impl Iso2302Answer {
                 })
                 .collect(),
         );
+        let s = &ev.settling;
+        answer.settling = Some(SettlingUsed {
+            settle_speed_mm_s: s.settle_speed_mm_s,
+            min_settled_s: s.min_settled_s,
+            window_s: s.window_s,
+            match_tolerance_mm: s.match_tolerance_mm,
+            measured_offset_mm: s.measured_offset_mm,
+        });
         answer
     }
 }
