@@ -445,19 +445,20 @@ proptest! {
 fn g53_and_g30_with_a_home_move_to_machine_positions() {
     let mut opts = ReadOptions {
         home_mm: Some([-5.0, -5.0, 80.0]),
+        g30_mm: Some([-7.0, -7.0, 70.0]),
         ..ReadOptions::default()
     };
     opts.work_offsets_mm[0] = Some([10.0, 0.0, 0.0]);
     let (p, w) = parse_with("G54 G0 X1 Z5\nG53 G0 Z60\nG30 X2\nG0 X0", &opts).unwrap();
     let ends: Vec<[f64; 3]> = p.blocks.iter().map(|b| b.end.xyz).collect();
-    // G53: machine Z60 (no offset); G30 X2: through program X2 (machine 12) to home X.
+    // G53: machine Z60 (no offset); G30 X2: through program X2 (machine 12) to the G30 X.
     assert_eq!(
         ends,
         vec![
             [11.0, 0.0, 5.0],
             [11.0, 0.0, 60.0],
             [12.0, 0.0, 60.0],
-            [-5.0, 0.0, 60.0],
+            [-7.0, 0.0, 60.0],
             [10.0, 0.0, 60.0]
         ]
     );
@@ -470,4 +471,195 @@ fn g53_and_g30_with_a_home_move_to_machine_positions() {
         w.iter()
             .any(|w| w.line == 3 && w.message.contains("unknown"))
     );
+}
+
+#[test]
+fn g30_without_its_position_is_not_the_home() {
+    // A home alone does not say where G30 goes: its axes are unknown, named on its line.
+    let opts = ReadOptions {
+        home_mm: Some([0.0, 0.0, 100.0]),
+        ..ReadOptions::default()
+    };
+    let (p, w) = parse_with("G0 X1 Z5\nG91 G30 Z0\nG90 G0 X3\nG0 Z7", &opts).unwrap();
+    let lines: Vec<usize> = p.blocks.iter().map(|b| b.line).collect();
+    assert_eq!(lines, vec![1, 4]);
+    let g30 = w.iter().find(|w| w.word == "G30").unwrap();
+    assert_eq!(g30.line, 2);
+    assert!(g30.message.contains("no G30 position"), "{g30:?}");
+    let strict = ReadOptions {
+        strict: true,
+        ..opts.clone()
+    };
+    let e = parse_with("G0 X1 Z5\nG91 G30 Z0", &strict).unwrap_err();
+    assert!(
+        matches!(e, Error::Gcode { line: 2, ref message } if message.starts_with("G30")),
+        "{e:?}"
+    );
+    // With it, strict reads it: the position is modelled.
+    let given = ReadOptions {
+        g30_mm: Some([1.0, 2.0, 50.0]),
+        ..strict
+    };
+    let (p, _) = parse_with("G0 X1 Z5\nG91 G30 Z0", &given).unwrap();
+    assert_eq!(p.blocks.last().unwrap().end.xyz, [1.0, 0.0, 50.0]);
+}
+
+/// (end point, rapid) of every block on `line`.
+fn path_of(p: &Program, line: usize) -> Vec<([f64; 3], bool)> {
+    p.blocks
+        .iter()
+        .filter(|b| b.line == line && !matches!(b.motion, Motion::Dwell { .. }))
+        .map(|b| (b.end.xyz, b.feed == Feed::Rapid))
+        .collect()
+}
+
+#[test]
+fn tapping_and_boring_cycles_retract_as_fanuc_does() {
+    // From Z10, hole at (1, 1), R2, Z-5: (end, rapid) after the rapid to XY and to R.
+    let r = |z: f64| ([1.0, 1.0, z], true);
+    let f = |z: f64| ([1.0, 1.0, z], false);
+    for (code, mode, out) in [
+        // Tapping: fed in, fed out to R (spindle reversed), then rapid to the initial Z.
+        ("G84", "G98", vec![f(-5.0), f(2.0), r(10.0)]),
+        ("G74", "G99", vec![f(-5.0), f(2.0)]),
+        // G86: spindle stop, rapid out. G88: dwell, manual retract (rapid on cycle start).
+        ("G86", "G98", vec![f(-5.0), r(2.0), r(10.0)]),
+        ("G88", "G99", vec![f(-5.0), r(2.0)]),
+        // G89: dwell, fed out to R.
+        ("G89", "G98", vec![f(-5.0), f(2.0), r(10.0)]),
+    ] {
+        let text = format!("G0 Z10\n{mode} {code} X1 Y1 Z-5 R2 P500 F100\nG80");
+        let (p, w) = lenient(&text);
+        let mut want = vec![([1.0, 1.0, 10.0], true), r(2.0)];
+        want.extend(out);
+        assert_eq!(path_of(&p, 2), want, "{code} {mode}");
+        let dwell = p
+            .blocks
+            .iter()
+            .any(|b| b.motion == Motion::Dwell { seconds: 0.5 });
+        assert_eq!(dwell, code != "G86", "{code}");
+        if code == "G89" {
+            // Fully modelled: no warning, strict reads it.
+            assert!(!w.iter().any(|w| w.word == code), "{w:?}");
+            continue;
+        }
+        let named = w.iter().find(|w| w.word == code).unwrap();
+        assert_eq!(named.line, 2, "{code}");
+        let (line, message) = strict_error(&text);
+        assert_eq!(line, 2);
+        assert!(message.starts_with(code), "{message}");
+    }
+    // G87 back boring: rapid down to R below the part, feed up to Z, rapid to the initial Z.
+    let (p, w) = lenient("G0 Z10\nG87 X1 Y1 R-20 Z-5 Q1 F100\nG80");
+    let up = vec![
+        ([1.0, 1.0, 10.0], true),
+        ([1.0, 1.0, -20.0], true),
+        ([1.0, 1.0, -5.0], false),
+        ([1.0, 1.0, 10.0], true),
+    ];
+    assert_eq!(path_of(&p, 2), up);
+    assert!(w.iter().any(|w| w.word == "G87" && w.message.contains("shift")));
+    // The old subset still refuses them.
+    assert!(matches!(parse("G84 X1 Z-1 R1 F10"), Err(Error::UnsupportedCode { ref code, .. }) if code == "G84"));
+}
+
+#[test]
+fn fusion_style_drill_and_tap_reads() {
+    // Fusion 360's Fanuc post: tapping as G98 G84 with R and F, modal holes, G80.
+    let text = "%\nO1001 (DRILL AND TAP)\nG90 G94 G17 G21\nT3 M6\nS600 M3\nG54 G0 X10. Y10.\n\
+                G43 Z15. H3 M8\nG0 Z5.\nG98 G84 X10. Y10. Z-12. R5. F720.\nX30.\nG80\nM30\n%";
+    let (p, w) = lenient(text);
+    let feeds: Vec<[f64; 3]> = p
+        .blocks
+        .iter()
+        .filter(|b| b.feed != Feed::Rapid)
+        .map(|b| b.end.xyz)
+        .collect();
+    assert_eq!(
+        feeds,
+        vec![
+            [10.0, 10.0, -12.0],
+            [10.0, 10.0, 5.0],
+            [30.0, 10.0, -12.0],
+            [30.0, 10.0, 5.0]
+        ]
+    );
+    assert_eq!(p.blocks.last().unwrap().end.xyz, [30.0, 10.0, 5.0]);
+    assert!(w.iter().any(|w| w.word == "G84" && w.line == 9));
+}
+
+#[test]
+fn pecks_feed_to_the_depths_linuxcnc_prints() {
+    // rs274 (LinuxCNC 2.9) prints these feed ends for the same lines (tests/gcode_oracle).
+    let feeds = |text: &str| -> Vec<f64> {
+        let (p, _) = lenient(text);
+        p.blocks
+            .iter()
+            .filter(|b| b.feed != Feed::Rapid)
+            .map(|b| b.end.xyz[2])
+            .collect()
+    };
+    assert_eq!(
+        feeds("G0 Z3\nG83 X5 Y5 Z-10 R2 Q3 F100"),
+        vec![-1.0, -4.0, -7.0, -10.0]
+    );
+    assert_eq!(feeds("G0 Z3\nG73 X7 Y1 Z-5 R2 Q2 F100"), vec![0.0, -2.0, -4.0, -5.0]);
+    // G83 rapids out to R between pecks and back down to 0.254 mm above the last depth.
+    let (p, w) = lenient("G0 Z3\nG83 X5 Y5 Z-10 R2 Q3 F100");
+    let rapids: Vec<f64> = p.blocks[2..]
+        .iter()
+        .filter(|b| b.feed == Feed::Rapid)
+        .map(|b| b.end.xyz[2])
+        .collect();
+    assert!((rapids[1] - 2.0).abs() < 1e-12 && (rapids[2] - -0.746).abs() < 1e-12, "{rapids:?}");
+    assert!(w.iter().any(|w| w.word == "G83" && w.message.contains("0.254")));
+    let e = parse_with("G83 X5 Z-10 R2 Q-1 F100", &ReadOptions::default()).unwrap_err();
+    assert!(matches!(e, Error::Gcode { line: 1, .. }), "{e:?}");
+}
+
+#[test]
+fn block_delete_in_mid_block_reads_the_optional_words() {
+    // Mastercam's Haas post: coolant made optional in mid-block.
+    let text = "G0 X0 Y0\nG43 H6 Z.25 /M8\nG1 Z-1 F100";
+    let (p, w) = lenient(text);
+    assert_eq!(p.blocks[1].end.xyz, [0.0, 0.0, 0.25]);
+    let slash = w.iter().find(|w| w.word == "/ (mid-block)").unwrap();
+    assert_eq!(slash.line, 2);
+    assert!(w.iter().any(|w| w.word == "M8" && w.line == 2));
+    let (line, message) = strict_error("G0 X0 Y0\nG0 Z.25 /M8");
+    assert_eq!(line, 2);
+    assert!(message.starts_with("/ (mid-block)"), "{message}");
+    // At the start of a block with an axis word after a mid-block slash: both read.
+    let (p, _) = lenient("/G0 X1 /Y2");
+    assert_eq!(p.blocks[0].end.xyz, [1.0, 2.0, 0.0]);
+}
+
+#[test]
+fn words_after_a_program_number_are_read() {
+    let (p, w) = lenient("O1234 G0 X5 Y6\nG1 X7 F100");
+    assert_eq!(p.blocks[0].end.xyz, [5.0, 6.0, 0.0]);
+    assert!(w.iter().any(|w| w.word == "O1234 (with words)" && w.line == 1));
+    let (line, message) = strict_error("G0 X1\nO1234 G0 X5");
+    assert_eq!(line, 2);
+    assert!(message.starts_with("O1234"), "{message}");
+    // The program-number line alone is still just named.
+    let (_, w) = lenient("O1234 (PART)\nG0 X1");
+    assert!(w.iter().any(|w| w.word == "O1234"));
+    assert!(!w.iter().any(|w| w.word.contains("with words")));
+    assert_eq!(word_spans("O1234 G0 X5").len(), 2);
+}
+
+#[test]
+fn vendor_m_codes_are_warnings() {
+    // Haas: M31 chip auger, M88 through-spindle coolant; Fanuc: M29 rigid tapping, M19.
+    let text = "G0 X1\nM31\nM88\nM29 S600\nM19\nG0 X2";
+    let (p, w) = lenient(text);
+    assert_eq!(p.blocks.len(), 2);
+    for (word, line) in [("M31", 2), ("M88", 3), ("M29", 4), ("M19", 5)] {
+        let named = w.iter().find(|w| w.word == word).unwrap();
+        assert_eq!(named.line, line, "{word}");
+    }
+    let (line, message) = strict_error("G0 X1\nM31");
+    assert_eq!(line, 2);
+    assert!(message.starts_with("M31"), "{message}");
 }
