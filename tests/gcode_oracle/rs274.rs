@@ -26,6 +26,8 @@ pub struct OracleMove {
     pub feed: bool,
     /// ARC_FEED (a full circle ends where it starts and still moves).
     pub arc: bool,
+    /// mm per printed unit (1 or 25.4): the printout has four decimals of it.
+    pub unit_mm: f64,
 }
 
 /// `rs274` when installed (PATH, /usr/bin, or LinuxCNC's own bin folder).
@@ -123,6 +125,7 @@ pub fn parse(text: &str) -> Result<Vec<OracleMove>, String> {
                     xyz_mm: [v[0] * scale, v[1] * scale, v[2] * scale],
                     feed: name == "STRAIGHT_FEED",
                     arc: false,
+                    unit_mm: scale,
                 });
             }
             "ARC_FEED" => {
@@ -138,6 +141,7 @@ pub fn parse(text: &str) -> Result<Vec<OracleMove>, String> {
                     xyz_mm: xyz.map(|c| c * scale),
                     feed: true,
                     arc: true,
+                    unit_mm: scale,
                 });
             }
             "PROGRAM_END" => ended = true,

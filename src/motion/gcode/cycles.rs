@@ -94,9 +94,10 @@ impl Cycle {
         p.xyz[2] = self.r_z_mm;
         path.go(p, Motion::Linear, Feed::Rapid);
         if let (73 | 83, Some(q)) = (self.code, self.peck_mm) {
-            // As LinuxCNC counts them: depths R - q, R - 2q, ... while above the bottom.
+            // As LinuxCNC counts them: depths R - q, R - 2q, ... while above the bottom (by
+            // more than rounding: when Z - R is a whole number of pecks the last one is Z).
             let mut depth = self.r_z_mm - q;
-            while depth > self.bottom_z_mm {
+            while depth > self.bottom_z_mm + 1e-9 {
                 p.xyz[2] = depth;
                 path.go(p, Motion::Linear, feed);
                 if self.code == 83 {

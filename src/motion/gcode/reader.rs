@@ -262,8 +262,21 @@ impl Reader<'_> {
         }
         let has_arc_words = [b'I', b'J', b'K', b'R'].iter().any(|&k| w.get(k).is_some());
         if !has_axis {
+            let arc = matches!(
+                self.m.motion,
+                Some(MotionMode::ArcCw | MotionMode::ArcCcw)
+            );
+            if arc && w.get(b'R').is_none() && has_arc_words {
+                // G2 I.5 J.5: a full circle back to where it starts (Fanuc, LinuxCNC).
+                self.motion_block(line, l, true)?;
+                return Ok(ends);
+            }
             if has_arc_words {
-                return Err(Error::gcode(line, "I/J/K/R given without an end point"));
+                return Err(Error::gcode(
+                    line,
+                    "I/J/K/R given without an end point (only a G2/G3 full circle may omit it, \
+                     with I/J/K)",
+                ));
             }
             if w.get(b'F').is_some() && c.motion.is_none() {
                 self.notes.note(
