@@ -14,7 +14,8 @@
 //!   oracle's feed-out end is clipped to R on those lines.
 //! - [`DIALECT_G28_UNSTORED`]: G28 with no stored position — LinuxCNC goes to 0 (parameters
 //!   5161-5163 default to zero); truecut does not guess (the axes are unknown without
-//!   `home`). Tested by name below; G28/G30/G53 examples are skipped.
+//!   `home`). Tested by name below; the comparisons give truecut home and G30 position at
+//!   machine zero, as rs274 has them without a parameter file.
 //! - Not generated because the dialects differ in the words themselves: G87 (LinuxCNC back
 //!   boring takes I J K with Z as the bottom; Fanuc takes Q with R as the bottom), dwell P
 //!   (seconds in LinuxCNC, ms in Fanuc: only time changes), G86/G88/G89 P (required by
@@ -58,9 +59,15 @@ fn same(a: &[f64; 3], b: &[f64; 3]) -> bool {
     (0..3).all(|k| (a[k] - b[k]).abs() <= 1e-7)
 }
 
-/// truecut's feed-move end points (lenient reading, no offsets: the program frame).
+/// truecut's feed-move end points (lenient reading, no offsets: the program frame; home and
+/// G30 position at machine zero, as rs274 has them without a parameter file).
 fn truecut_feeds(text: &str) -> Result<Vec<Point>, String> {
-    let (program, _) = parse_with(text, &ReadOptions::default()).map_err(|e| e.to_string())?;
+    let options = ReadOptions {
+        home_mm: Some([0.0; 3]),
+        g30_mm: Some([0.0; 3]),
+        ..ReadOptions::default()
+    };
+    let (program, _) = parse_with(text, &options).map_err(|e| e.to_string())?;
     Ok(program
         .blocks
         .iter()
@@ -310,7 +317,7 @@ fn skip_reason(text: &str) -> Option<String> {
     }
     let reasons: [(&[u32], &str); 10] = [
         (&[410, 411, 420, 421], "cutter radius compensation G41/G42: LinuxCNC offsets the path, truecut keeps the programmed tool-tip path"),
-        (&[280, 281, 300, 301, 530], "G28/G30/G53 machine positions (see DIALECT_G28_UNSTORED)"),
+        (&[281, 301], "G28.1/G30.1 (storing the reference positions)"),
         (&[100, 520, 920, 921, 922, 923], "coordinate system setting G10/G52/G92"),
         (&[870], "G87 back boring (LinuxCNC and Fanuc take different words)"),
         (&[330, 331, 760], "spindle-synchronised motion G33/G76"),
@@ -391,12 +398,14 @@ fn linuxcnc_example_programs_agree() {
         }
     });
     let (mut compared, mut skipped, mut failures) = (0, Vec::new(), Vec::new());
+    let mut names = Vec::new();
     let mut worst: (f64, String) = (0.0, String::new());
     for (name, r) in results {
         match r {
             Err(why) => skipped.push(format!("  {name}: {why}")),
             Ok(Ok(d)) => {
                 compared += 1;
+                names.push(name.clone());
                 if d >= worst.0 {
                     worst = (d, name);
                 }
@@ -405,8 +414,9 @@ fn linuxcnc_example_programs_agree() {
         }
     }
     println!(
-        "examples: {compared} compared with rs274 (rounded as it prints, four decimals), {} \
+        "examples: {compared} compared with rs274 (rounded as it prints, four decimals): {}; {} \
          disagree, worst |d| before rounding {:.3e} mm ({}); {} skipped:\n{}",
+        names.join(", "),
         failures.len(),
         worst.0,
         worst.1,

@@ -74,17 +74,19 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// G4: X seconds or P milliseconds.
+    /// G4: X seconds or P milliseconds; on a line with motion (`G4 P.001 G0 X1`, as
+    /// LinuxCNC runs it: the dwell first) only P, X being the move's.
     pub(super) fn dwell(&mut self, line: usize, l: &Lexed, with_motion: bool) -> Result<(), Error> {
-        if with_motion {
-            return Err(Error::gcode(
-                line,
-                "G4 dwell cannot share a line with motion",
-            ));
-        }
-        let seconds = match (l.words.get(b'X'), l.words.get(b'P')) {
+        let x = if with_motion { None } else { l.words.get(b'X') };
+        let seconds = match (x, l.words.get(b'P')) {
             (Some(x), None) => x,
             (None, Some(p)) => p / 1000.0,
+            (None, None) if with_motion => {
+                return Err(Error::gcode(
+                    line,
+                    "G4 on a line with motion needs P (milliseconds)",
+                ));
+            }
             _ => {
                 return Err(Error::gcode(
                     line,

@@ -222,11 +222,13 @@ impl Reader<'_> {
         let scale = self.scale();
         if c.dwell {
             self.dwell(line, l, c.motion.is_some())?;
-            return Ok(ends);
+            if c.motion.is_none() {
+                return Ok(ends);
+            }
         }
         if let Some(p) = w.get(b'P') {
             let in_cycle = c.cycle.is_some() || self.m.cycle.is_some();
-            if !in_cycle {
+            if !in_cycle && !c.dwell {
                 self.notes
                     .note(line, word_name('P', p), "not used by the motion", Accepted)?;
             }
