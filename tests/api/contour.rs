@@ -216,7 +216,9 @@ async fn fusion_tapping_and_haas_mid_block_delete(app: TestApp) {
     );
     let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
     let zmin = cmd.iter().map(|r| r[2]).fold(f64::MAX, f64::min);
-    let at_x30 = cmd.iter().any(|r| (r[0] - 30.0).abs() < 1e-6 && (r[2] + 12.0).abs() < 1e-3);
+    let at_x30 = cmd
+        .iter()
+        .any(|r| (r[0] - 30.0).abs() < 1e-6 && (r[2] + 12.0).abs() < 1e-3);
     assert!((zmin + 12.0).abs() < 1e-3 && at_x30, "{zmin}");
     let tap = "G0 X10 Y10 Z5\nG98 G84 X10. Y10. Z-12. R5. F720.\nG80\n";
     let r = contour(&app, "m", &json!({"gcode": tap, "strict": true})).await;
@@ -229,12 +231,17 @@ async fn fusion_tapping_and_haas_mid_block_delete(app: TestApp) {
     let b: Value = r.json().await.unwrap();
     let warnings: Vec<String> = serde_json::from_value(b["warnings"].clone()).unwrap();
     assert!(
-        warnings.iter().any(|w| w.starts_with("line 2: / (mid-block): ")),
+        warnings
+            .iter()
+            .any(|w| w.starts_with("line 2: / (mid-block): ")),
         "{warnings:#?}"
     );
     let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
     let last = cmd.last().unwrap();
-    assert!((last[0] - 5.0).abs() < 1e-6 && (last[2] - 0.25).abs() < 1e-6, "{last:?}");
+    assert!(
+        (last[0] - 5.0).abs() < 1e-6 && (last[2] - 0.25).abs() < 1e-6,
+        "{last:?}"
+    );
     let body = json!({"gcode": haas, "tool_lengths": {"6": 0.0}, "strict": true});
     let r = contour(&app, "m", &body).await;
     assert_problem(r, 422, &["line 2", "/ (mid-block)", "strict"]).await;

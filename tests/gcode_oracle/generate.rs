@@ -271,7 +271,11 @@ impl Gen {
         let feed = self.feed_word();
         self.push(format!("{mode} G{code}{words} Z{z} R{r}{extra}{feed}"));
         let at = |g: &mut Gen, xy: [i64; 3], to_initial: bool| {
-            let clear = if to_initial { initial.max(r_abs) } else { r_abs };
+            let clear = if to_initial {
+                initial.max(r_abs)
+            } else {
+                r_abs
+            };
             g.pos = [xy[0], xy[1], clear];
         };
         at(self, to, to_initial);

@@ -175,7 +175,9 @@ fn compare_moves(moves: &[rs274::OracleMove], text: &str, how: Match) -> Result<
     let got = once(truecut_feeds(text).map_err(|e| format!("truecut refused it: {e}"))?);
     let mut worst: f64 = 0.0;
     for (i, (w, g)) in want.iter().zip(&got).enumerate() {
-        let raw = (0..3).map(|k| (w.xyz[k] - g.xyz[k]).abs()).fold(0.0, f64::max);
+        let raw = (0..3)
+            .map(|k| (w.xyz[k] - g.xyz[k]).abs())
+            .fold(0.0, f64::max);
         let d = match how {
             Match::Exact => raw,
             // Half the printout's last digit (0.00005 of its unit) may be rounding.
@@ -316,15 +318,27 @@ fn skip_reason(text: &str) -> Option<String> {
         }
     }
     let reasons: [(&[u32], &str); 10] = [
-        (&[410, 411, 420, 421], "cutter radius compensation G41/G42: LinuxCNC offsets the path, truecut keeps the programmed tool-tip path"),
+        (
+            &[410, 411, 420, 421],
+            "cutter radius compensation G41/G42: LinuxCNC offsets the path, truecut keeps the programmed tool-tip path",
+        ),
         (&[281, 301], "G28.1/G30.1 (storing the reference positions)"),
-        (&[100, 520, 920, 921, 922, 923], "coordinate system setting G10/G52/G92"),
-        (&[870], "G87 back boring (LinuxCNC and Fanuc take different words)"),
+        (
+            &[100, 520, 920, 921, 922, 923],
+            "coordinate system setting G10/G52/G92",
+        ),
+        (
+            &[870],
+            "G87 back boring (LinuxCNC and Fanuc take different words)",
+        ),
         (&[330, 331, 760], "spindle-synchronised motion G33/G76"),
         (&[50, 51, 52, 53], "splines and NURBS G5.x"),
         (&[70, 80], "lathe diameter/radius mode G7/G8"),
         (&[382, 383, 384, 385], "probing G38.x"),
-        (&[950, 960, 970], "feed per revolution / constant surface speed G95/G96/G97"),
+        (
+            &[950, 960, 970],
+            "feed per revolution / constant surface speed G95/G96/G97",
+        ),
         (&[431, 432], "dynamic tool length G43.1/G43.2"),
     ];
     for (set, why) in reasons {
@@ -381,10 +395,17 @@ fn linuxcnc_example_programs_agree() {
             .is_some_and(|x| x.eq_ignore_ascii_case("ngc") || x.eq_ignore_ascii_case("nc"))
     });
     files.sort();
-    assert!(!files.is_empty(), "rs274 is installed but {NCFILES} has no programs");
+    assert!(
+        !files.is_empty(),
+        "rs274 is installed but {NCFILES} has no programs"
+    );
     let dir = tempfile::tempdir().unwrap();
     let results = on_two_threads(files.len(), |i| {
-        let name = files[i].strip_prefix(NCFILES).unwrap().display().to_string();
+        let name = files[i]
+            .strip_prefix(NCFILES)
+            .unwrap()
+            .display()
+            .to_string();
         let text = String::from_utf8_lossy(&std::fs::read(&files[i]).unwrap()).into_owned();
         if let Some(why) = skip_reason(&text) {
             return (name, Err(why));
@@ -424,7 +445,11 @@ fn linuxcnc_example_programs_agree() {
         skipped.join("\n")
     );
     assert!(compared > 0, "no example program was compared");
-    assert!(failures.is_empty(), "disagreements:\n{}", failures.join("\n"));
+    assert!(
+        failures.is_empty(),
+        "disagreements:\n{}",
+        failures.join("\n")
+    );
 }
 
 #[test]
@@ -443,7 +468,10 @@ fn dialect_g28_without_a_stored_position_is_named() {
     // truecut without a home: Z is unknown, the feed on line 4 is named, not invented.
     let (p, w) = parse_with(text, &ReadOptions::default()).unwrap();
     assert!(!p.blocks.iter().any(|b| b.line == 4));
-    assert!(w.iter().any(|w| w.line == 4 && w.message.contains("unknown")));
+    assert!(
+        w.iter()
+            .any(|w| w.line == 4 && w.message.contains("unknown"))
+    );
     // Given LinuxCNC's stored position as the home, they agree.
     let opts = ReadOptions {
         home_mm: Some([0.0; 3]),

@@ -57,8 +57,8 @@ pub fn run(rs274: &Path, file: &Path) -> Result<Vec<OracleMove>, String> {
         .arg(file)
         .output()
         .map_err(|e| format!("cannot run {}: {e}", rs274.display()))?;
-    let text = String::from_utf8_lossy(&out.stdout).into_owned()
-        + &String::from_utf8_lossy(&out.stderr);
+    let text =
+        String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
     parse(&text).map_err(|e| {
         format!(
             "{e} (exit {:?}, signal {:?}, {} lines printed, last: {:?})",

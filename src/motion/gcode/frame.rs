@@ -112,7 +112,10 @@ impl Reader<'_> {
             "G30"
         };
         let (target, missing) = if g == 300 {
-            (self.opts.g30_mm, "no G30 position given (machine definition `g30`)")
+            (
+                self.opts.g30_mm,
+                "no G30 position given (machine definition `g30`)",
+            )
         } else {
             (self.opts.home_mm, "no home given")
         };

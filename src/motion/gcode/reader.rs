@@ -264,10 +264,7 @@ impl Reader<'_> {
         }
         let has_arc_words = [b'I', b'J', b'K', b'R'].iter().any(|&k| w.get(k).is_some());
         if !has_axis {
-            let arc = matches!(
-                self.m.motion,
-                Some(MotionMode::ArcCw | MotionMode::ArcCcw)
-            );
+            let arc = matches!(self.m.motion, Some(MotionMode::ArcCw | MotionMode::ArcCcw));
             if arc && w.get(b'R').is_none() && has_arc_words {
                 // G2 I.5 J.5: a full circle back to where it starts (Fanuc, LinuxCNC).
                 self.motion_block(line, l, true)?;

@@ -558,9 +558,14 @@ fn tapping_and_boring_cycles_retract_as_fanuc_does() {
         ([1.0, 1.0, 10.0], true),
     ];
     assert_eq!(path_of(&p, 2), up);
-    assert!(w.iter().any(|w| w.word == "G87" && w.message.contains("shift")));
+    assert!(
+        w.iter()
+            .any(|w| w.word == "G87" && w.message.contains("shift"))
+    );
     // The old subset still refuses them.
-    assert!(matches!(parse("G84 X1 Z-1 R1 F10"), Err(Error::UnsupportedCode { ref code, .. }) if code == "G84"));
+    assert!(
+        matches!(parse("G84 X1 Z-1 R1 F10"), Err(Error::UnsupportedCode { ref code, .. }) if code == "G84")
+    );
 }
 
 #[test]
@@ -603,7 +608,10 @@ fn pecks_feed_to_the_depths_linuxcnc_prints() {
         feeds("G0 Z3\nG83 X5 Y5 Z-10 R2 Q3 F100"),
         vec![-1.0, -4.0, -7.0, -10.0]
     );
-    assert_eq!(feeds("G0 Z3\nG73 X7 Y1 Z-5 R2 Q2 F100"), vec![0.0, -2.0, -4.0, -5.0]);
+    assert_eq!(
+        feeds("G0 Z3\nG73 X7 Y1 Z-5 R2 Q2 F100"),
+        vec![0.0, -2.0, -4.0, -5.0]
+    );
     // G83 rapids out to R between pecks and back down to 0.254 mm above the last depth.
     let (p, w) = lenient("G0 Z3\nG83 X5 Y5 Z-10 R2 Q3 F100");
     let rapids: Vec<f64> = p.blocks[2..]
@@ -611,8 +619,14 @@ fn pecks_feed_to_the_depths_linuxcnc_prints() {
         .filter(|b| b.feed == Feed::Rapid)
         .map(|b| b.end.xyz[2])
         .collect();
-    assert!((rapids[1] - 2.0).abs() < 1e-12 && (rapids[2] - -0.746).abs() < 1e-12, "{rapids:?}");
-    assert!(w.iter().any(|w| w.word == "G83" && w.message.contains("0.254")));
+    assert!(
+        (rapids[1] - 2.0).abs() < 1e-12 && (rapids[2] - -0.746).abs() < 1e-12,
+        "{rapids:?}"
+    );
+    assert!(
+        w.iter()
+            .any(|w| w.word == "G83" && w.message.contains("0.254"))
+    );
     let e = parse_with("G83 X5 Z-10 R2 Q-1 F100", &ReadOptions::default()).unwrap_err();
     assert!(matches!(e, Error::Gcode { line: 1, .. }), "{e:?}");
 }
@@ -638,7 +652,10 @@ fn block_delete_in_mid_block_reads_the_optional_words() {
 fn words_after_a_program_number_are_read() {
     let (p, w) = lenient("O1234 G0 X5 Y6\nG1 X7 F100");
     assert_eq!(p.blocks[0].end.xyz, [5.0, 6.0, 0.0]);
-    assert!(w.iter().any(|w| w.word == "O1234 (with words)" && w.line == 1));
+    assert!(
+        w.iter()
+            .any(|w| w.word == "O1234 (with words)" && w.line == 1)
+    );
     let (line, message) = strict_error("G0 X1\nO1234 G0 X5");
     assert_eq!(line, 2);
     assert!(message.starts_with("O1234"), "{message}");
