@@ -23,6 +23,9 @@
 
 use crate::motion::program::{Block, Feed, Motion, Pose};
 
+#[cfg(test)]
+mod tests;
+
 /// Rapid clearance between pecks (G73: back-off; G83: above the last depth), mm.
 pub(crate) const PECK_CLEARANCE_MM: f64 = 0.254;
 
