@@ -200,7 +200,10 @@ async fn compensated_program(
     if let Some(p) = req.period_s {
         check_period(p)?;
     }
-    let options = req.read_options()?;
+    // The definition's home and G30 position; its errors matter only for a contour.
+    let def = require_machine_def(&state, &machine).await;
+    let (home, g30) = def.as_ref().map_or((None, None), |d| (d.home, d.g30));
+    let options = req.read_options()?.with_reference_points(home, g30);
     let volumetric = req.volumetric.unwrap_or(map.is_some());
     let contour = req.contour.unwrap_or(false);
     if !volumetric && !contour {
@@ -225,8 +228,7 @@ async fn compensated_program(
         None
     };
     let sim = if contour {
-        let def = require_machine_def(&state, &machine).await?;
-        Some(machine_for_simulation(&machine, &def)?)
+        Some(machine_for_simulation(&machine, &def?)?)
     } else {
         None
     };

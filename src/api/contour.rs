@@ -128,7 +128,7 @@ async fn contour_error(
             "gcode is empty: send the program text, e.g. \"G1 X10 F600\"",
         ));
     }
-    let options = req.read_options()?;
+    let options = req.read_options()?.with_reference_points(def.home, def.g30);
     let m = machine_for_simulation(&machine, &def)?;
     let body = state
         .jobs

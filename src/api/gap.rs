@@ -100,7 +100,8 @@ async fn gap_diagnosis(
             let m = servo_axes(&machine, &mdef)?;
             if req.gcode.is_some() {
                 let sim = machine_for_simulation(&machine, &mdef)?;
-                return motion_from_program(&state, sim, m, req).await;
+                let reference = (mdef.home, mdef.g30);
+                return motion_from_program(&state, sim, m, req, reference).await;
             }
             let n = req.commanded.as_ref().map_or(0, Vec::len);
             let nv = req
@@ -146,6 +147,7 @@ async fn motion_from_program(
     sim: Machine,
     m: ServoAxes,
     req: GapRequest,
+    (home, g30): (Option<[f64; 3]>, Option<[f64; 3]>),
 ) -> ApiResult<Response> {
     let gcode = req.gcode.clone().unwrap_or_default();
     if gcode.trim().is_empty() {
@@ -157,7 +159,8 @@ async fn motion_from_program(
         ApiError::bad_request("period_s is missing: give the sample period in seconds, e.g. 0.001")
     })?;
     check_period(period_s)?;
-    let options = reader_options(req.strict, &req.work_offsets, &req.tool_lengths, req.home)?;
+    let options = reader_options(req.strict, &req.work_offsets, &req.tool_lengths, req.home)?
+        .with_reference_points(home, g30);
     let n = req.measured.as_ref().map_or(0, Vec::len);
     if n > MAX_SYNC_SAMPLES {
         return Err(ApiError::bad_request(format!(

@@ -239,8 +239,14 @@ fn plan_line(
             return LinePlan::Keep;
         };
         notes.holes.push(line);
-        let bottom = feed.end.xyz;
+        // The first feed starts at R; the bottom is the deepest feed end (G73/G83 feed in
+        // pecks, G74/G84/G85/G89 feed back out).
         let r_plane = feed.start.xyz;
+        let bottom = blocks
+            .iter()
+            .filter(|b| b.feed != Feed::Rapid && b.motion == Motion::Linear)
+            .map(|b| b.end.xyz)
+            .fold(feed.end.xyz, |a, b| if b[2] < a[2] { b } else { a });
         let eb = shifter.error(line, bottom);
         let er = shifter.error(line, r_plane);
         let last_z = blocks.last().map(|b| b.end.xyz[2]).unwrap_or(r_plane[2]);

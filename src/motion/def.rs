@@ -81,6 +81,13 @@ pub struct MachineDef {
     /// G0 rate along the path, mm/min (default 30,000).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub rapid_mm_min: Option<f64>,
+    /// Machine home (G28, and G53 is modelled once it is known), [x, y, z] mm in machine
+    /// coordinates; a request's `home` overrides it.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub home: Option<[f64; 3]>,
+    /// G30 position (second reference point), [x, y, z] mm in machine coordinates.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub g30: Option<[f64; 3]>,
 }
 
 /// The `"axes"` object: one optional servo per axis letter.
@@ -292,6 +299,21 @@ impl MachineDef {
         }
         if let Some(r) = self.rapid_mm_min {
             RAPID_MM_MIN.check("rapid_mm_min", r)?;
+        }
+        for (name, point) in [("home", self.home), ("g30", self.g30)] {
+            if let Some(v) = point
+                .iter()
+                .flatten()
+                .find(|v| !(v.is_finite() && v.abs() <= GEOMETRY_MM))
+            {
+                return Err(Error::BadDefinition {
+                    field: name.into(),
+                    message: format!(
+                        "[x, y, z] must be finite mm in machine coordinates, at most \
+                         {GEOMETRY_MM} in size, got {v}"
+                    ),
+                });
+            }
         }
         if let Some(axes) = &self.axes {
             let allowed = kin.axis_names();

@@ -105,10 +105,12 @@ fn to_segment(c: [f64; 3], s: [f64; 3], e: [f64; 3]) -> f64 {
 fn placed_point(blocks: &[&Block]) -> Option<[f64; 3]> {
     match blocks {
         [b] if !matches!(b.motion, Motion::Dwell { .. }) => Some(b.end.xyz),
+        // A hole: its deepest feed end (G73/G83 feed in pecks, G84/G85/G89 feed back out).
         [_, _, ..] => blocks
             .iter()
-            .find(|b| b.feed != Feed::Rapid)
-            .map(|b| b.end.xyz),
+            .filter(|b| b.feed != Feed::Rapid)
+            .map(|b| b.end.xyz)
+            .reduce(|a, b| if b[2] < a[2] { b } else { a }),
         _ => None,
     }
 }

@@ -197,6 +197,70 @@ async fn post_processor_program_lenient_and_strict(app: TestApp) {
 }
 on_both_backends!(post_processor_program_lenient_and_strict);
 
+/// Fusion 360's Fanuc post, drill and tap (issue 24: it used to be refused at G84).
+const FUSION_TAP: &str = "%\nO1001 (DRILL AND TAP)\nG90 G94 G17 G21\nT3 M6\nS600 M3\n\
+G54 G0 X10. Y10.\nG43 Z15. H3 M8\nG0 Z5.\nG98 G84 X10. Y10. Z-12. R5. F720.\nX30.\nG80\nM30\n%\n";
+
+async fn fusion_tapping_and_haas_mid_block_delete(app: TestApp) {
+    let mut def = xyz_kv(30.0, 0.0);
+    def["g30"] = json!([0.0, 0.0, 40.0]);
+    put_machine(&app, "m", &def).await;
+    // Tapping: read, fed in to Z-12 and out to R at both holes, named on its line.
+    let r = contour(&app, "m", &json!({"gcode": FUSION_TAP})).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    let warnings: Vec<String> = serde_json::from_value(b["warnings"].clone()).unwrap();
+    assert!(
+        warnings.iter().any(|w| w.starts_with("line 9: G84: ")),
+        "{warnings:#?}"
+    );
+    let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+    let zmin = cmd.iter().map(|r| r[2]).fold(f64::MAX, f64::min);
+    let at_x30 = cmd
+        .iter()
+        .any(|r| (r[0] - 30.0).abs() < 1e-6 && (r[2] + 12.0).abs() < 1e-3);
+    assert!((zmin + 12.0).abs() < 1e-3 && at_x30, "{zmin}");
+    let tap = "G0 X10 Y10 Z5\nG98 G84 X10. Y10. Z-12. R5. F720.\nG80\n";
+    let r = contour(&app, "m", &json!({"gcode": tap, "strict": true})).await;
+    assert_problem(r, 422, &["line 2", "G84", "strict"]).await;
+    // Mastercam's Haas post: coolant optional in mid-block; the Z move is read.
+    let haas = "G0 X0 Y0 Z1.\nG43 H6 Z.25 /M8\nG1 X5. F300.\n";
+    let body = json!({"gcode": haas, "tool_lengths": {"6": 0.0}});
+    let r = contour(&app, "m", &body).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    let warnings: Vec<String> = serde_json::from_value(b["warnings"].clone()).unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.starts_with("line 2: / (mid-block): ")),
+        "{warnings:#?}"
+    );
+    let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+    let last = cmd.last().unwrap();
+    assert!(
+        (last[0] - 5.0).abs() < 1e-6 && (last[2] - 0.25).abs() < 1e-6,
+        "{last:?}"
+    );
+    let body = json!({"gcode": haas, "tool_lengths": {"6": 0.0}, "strict": true});
+    let r = contour(&app, "m", &body).await;
+    assert_problem(r, 422, &["line 2", "/ (mid-block)", "strict"]).await;
+    // G30 goes to the machine's own G30 position (Z40), not to an unknown one.
+    let g30 = "G0 X1 Y1 Z5\nG91 G30 Z0\nG90 G1 X2 F600\n";
+    let r = contour(&app, "m", &json!({"gcode": g30, "strict": true})).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+    let zmax = cmd.iter().map(|r| r[2]).fold(f64::MIN, f64::max);
+    assert!((zmax - 40.0).abs() < 1e-6, "{zmax}");
+    // A G30 position that is not a point is refused when stored.
+    let mut bad = xyz_kv(30.0, 0.0);
+    bad["g30"] = json!([0.0, 0.0, 1e9]);
+    let r = app.put_json("/v1/machines/m2", &bad).await;
+    assert_problem(r, 400, &["g30"]).await;
+}
+on_both_backends!(fusion_tapping_and_haas_mid_block_delete);
+
 async fn offsets_tool_lengths_and_inch_programs(app: TestApp) {
     put_machine(&app, "m", &xyz_kv(30.0, 0.0)).await;
     let body = json!({"gcode": POST, "work_offsets": {"G54": [100.0, -20.0, 5.0]},

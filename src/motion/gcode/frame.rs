@@ -1,6 +1,7 @@
 //! The machine frame of the reader: G54..G59 work offsets and G43 H tool lengths given by the
-//! caller, and G28/G30/G53 moves to machine positions (through the intermediate point to the
-//! caller's home, or axes unknown until programmed absolutely again).
+//! caller, and G28/G30/G53 moves to machine positions (G28/G30 through the intermediate point
+//! to the caller's home or G30 position; G53 to machine coordinates when the home is given;
+//! else the axes are unknown until programmed absolutely again).
 //!
 //! Why unknown rather than a guess: without the machine's home, any path after G28 would be
 //! invented, and a compensation computed on it would be wrong where it matters (CONTRACT v1.1
@@ -110,7 +111,15 @@ impl Reader<'_> {
         } else {
             "G30"
         };
-        match self.opts.home_mm {
+        let (target, missing) = if g == 300 {
+            (
+                self.opts.g30_mm,
+                "no G30 position given (machine definition `g30`)",
+            )
+        } else {
+            (self.opts.home_mm, "no home given")
+        };
+        match target {
             Some(home) => {
                 let mut end = self.m.pose;
                 for &k in &named {
@@ -140,7 +149,7 @@ impl Reader<'_> {
                         line,
                         name,
                         format!(
-                            "no home given: axes {axes} are at unknown machine positions until \
+                            "{missing}: axes {axes} are at unknown machine positions until \
                              programmed absolutely again"
                         ),
                         Refused,

@@ -1,5 +1,6 @@
-//! One line of G-code into words: comments stripped, block delete `/`, `%` and program-number
-//! lines recognised, letter + number words (spaces allowed between them, as Fanuc does), G and
+//! One line of G-code into words: comments stripped, block delete `/` (at the start of the
+//! block or in mid-block, where the words after it are the optional part), `%` and program
+//! numbers (`O1234`, `:1234`, with the words that follow on the line still read) recognised, letter + number words (spaces allowed between them, as Fanuc does), G and
 //! M codes as integers × 10, and the Sinumerik keywords TRAORI/TRAFOOF.
 //!
 //! What the words mean is the reader's business (`super::reader`); this file only refuses
@@ -41,12 +42,16 @@ pub(crate) struct Lexed {
     pub comment: bool,
     /// The line began with `/` (block delete).
     pub block_delete: bool,
+    /// A `/` in mid-block (Fanuc, Haas: the words after it are skipped when the switch is on).
+    pub mid_block_delete: bool,
     /// The line had an N number.
     pub numbered: bool,
     /// The line is `%` (tape start/end).
     pub percent: bool,
-    /// The line is a program number (`O1234`, `:1234`): its text.
+    /// The line opens with a program number (`O1234`, `:1234`): its text.
     pub program_number: Option<String>,
+    /// Words other than the program number on its line.
+    pub words_after_program_number: bool,
 }
 
 /// `X10`, `M3`, `G43.4`: a word as written back in messages.
@@ -114,15 +119,24 @@ pub(crate) fn lex(raw: &str, line: usize) -> Result<Lexed, Error> {
         return Ok(out);
     }
     if trimmed.starts_with('O') || trimmed.starts_with(':') {
-        // Program number line (Fanuc O1234 or :1234): no action.
-        out.program_number = Some(trimmed.to_string());
-        return Ok(out);
+        // Program number (Fanuc O1234 or :1234): no action; what follows is read as usual.
+        let end = trimmed[1..]
+            .find(|c: char| !c.is_ascii_digit())
+            .map_or(trimmed.len(), |k| k + 1);
+        out.program_number = Some(trimmed[..end].to_string());
+        trimmed = trimmed[end..].trim_start();
+        out.words_after_program_number = !trimmed.is_empty();
     }
     let bytes = trimmed.as_bytes();
     let mut i = 0;
     while i < bytes.len() {
         let b = bytes[i];
         if b.is_ascii_whitespace() {
+            i += 1;
+            continue;
+        }
+        if b == b'/' {
+            out.mid_block_delete = true;
             i += 1;
             continue;
         }

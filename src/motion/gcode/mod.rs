@@ -1,12 +1,14 @@
 //! G-code reader: an ISO 6983 / Fanuc-style reader (lenient, strict on request) with
 //! Sinumerik TRAORI/TRAFOOF.
 //!
-//! Files: `lexer` (comments, words), `reader` (modal state, what a line asks for), `moves`
+//! Files: `lexer` (comments, words), `reader` (modal state, what a line asks for), `codes`
+//! (each G code, and the words that move nothing), `moves`
 //! (blocks, dwell, cycles in force, M codes), `frame` (work offsets, tool lengths,
 //! G28/G30/G53), `cycles` (canned drilling cycles expanded), `options` (options and
 //! warnings), `trace` (per-line frames and word positions for program rewriters) and the
 //! tests.
 
+mod codes;
 mod cycles;
 mod frame;
 mod lexer;

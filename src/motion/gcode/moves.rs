@@ -24,9 +24,11 @@ impl Reader<'_> {
                 3..=5 => "spindle: not modelled",
                 6 => "tool change: the programmed tool-tip path is used",
                 7..=9 => "coolant: not modelled",
-                98 => "subprogram call not followed: its moves are missing from the path",
+                19 => "spindle orientation: not modelled",
+                29 => "rigid tapping mode: the tapping cycle's path is read, its timing is not",
+                97 | 98 => "subprogram call not followed: its moves are missing from the path",
                 99 => "subprogram return: not followed",
-                _ => "M code not modelled",
+                _ => "machine (vendor) M code: no axis motion, passed through",
             };
             let legacy = if mc <= 9 || mc == 30 {
                 Accepted
@@ -72,17 +74,19 @@ impl Reader<'_> {
         Ok(())
     }
 
-    /// G4: X seconds or P milliseconds.
+    /// G4: X seconds or P milliseconds; on a line with motion (`G4 P.001 G0 X1`, as
+    /// LinuxCNC runs it: the dwell first) only P, X being the move's.
     pub(super) fn dwell(&mut self, line: usize, l: &Lexed, with_motion: bool) -> Result<(), Error> {
-        if with_motion {
-            return Err(Error::gcode(
-                line,
-                "G4 dwell cannot share a line with motion",
-            ));
-        }
-        let seconds = match (l.words.get(b'X'), l.words.get(b'P')) {
+        let x = if with_motion { None } else { l.words.get(b'X') };
+        let seconds = match (x, l.words.get(b'P')) {
             (Some(x), None) => x,
             (None, Some(p)) => p / 1000.0,
+            (None, None) if with_motion => {
+                return Err(Error::gcode(
+                    line,
+                    "G4 on a line with motion needs P (milliseconds)",
+                ));
+            }
             _ => {
                 return Err(Error::gcode(
                     line,
@@ -188,12 +192,21 @@ impl Reader<'_> {
             (None, Some(c)) => c.dwell_s,
             (None, None) => 0.0,
         };
+        let peck_mm = match (l.words.get(b'Q'), prev) {
+            (Some(q), _) if matches!(code, 73 | 83) && q <= 0.0 => {
+                return Err(Error::gcode(line, "Q (peck depth) must be > 0"));
+            }
+            (Some(q), _) => Some(q * scale),
+            (None, Some(c)) => c.peck_mm,
+            (None, None) => None,
+        };
         self.m.cycle = Some(Cycle {
             code,
             initial_z_mm,
             r_z_mm,
             bottom_z_mm,
             dwell_s,
+            peck_mm,
         });
         Ok(())
     }

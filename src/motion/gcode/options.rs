@@ -25,9 +25,27 @@ pub struct ReadOptions {
     /// Tool lengths by H number, mm: under `G43 Hn` the machine Z is the programmed Z + length.
     /// A missing number keeps the programmed tool-tip path, with a warning.
     pub tool_lengths_mm: BTreeMap<u32, f64>,
-    /// Machine home (G28 / G30 reference point), mm in machine coordinates. `None`: the axes
-    /// that G28/G30/G53 name are unknown until programmed absolutely again.
+    /// Machine home (G28 reference point), mm in machine coordinates. `None`: the axes that
+    /// G28/G53 name are unknown until programmed absolutely again.
     pub home_mm: Option<[f64; 3]>,
+    /// G30 position (Fanuc's second reference point, LinuxCNC's parameters 5181-5183), mm in
+    /// machine coordinates. `None`: the axes that G30 names are unknown until programmed
+    /// absolutely again (it is not the home).
+    pub g30_mm: Option<[f64; 3]>,
+}
+
+impl ReadOptions {
+    /// Fills the home and the G30 position the request did not give from the machine
+    /// definition's (`MachineDef::home`, `MachineDef::g30`).
+    pub fn with_reference_points(
+        mut self,
+        home_mm: Option<[f64; 3]>,
+        g30_mm: Option<[f64; 3]>,
+    ) -> Self {
+        self.home_mm = self.home_mm.or(home_mm);
+        self.g30_mm = self.g30_mm.or(g30_mm);
+        self
+    }
 }
 
 /// A word the reader passed through or could not model faithfully.

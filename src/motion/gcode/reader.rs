@@ -6,21 +6,24 @@
 //! Modelled (they move the tool): G0 G1 G2 G3 (IJK or R, negative R > 180°, full circles,
 //! helical third axis), G4 dwell (X s or P ms), G17/G18/G19, G20/G21, G90/G91, G90.1/G91.1
 //! (absolute / incremental arc centres), G93/G94, G43.4/G49 and TRAORI/TRAFOOF (RTCP), modal
-//! motion lines without a G word, canned cycles G73/G81/G82/G83/G85 with G98/G99 (G80
-//! cancels; `super::cycles`), G54..G59 with caller-given offsets, G43 H with caller-given
-//! tool lengths, G28/G30/G53 with a caller-given home. Passed through with a warning (each
-//! word once, [`Warning`]), or refused under `strict`: comments, `%`, O numbers, N, S, T, D,
-//! H, M codes, F-only lines, G40/G41/G42, G49, G61/G64, G80, block delete `/` (read with the
-//! switch off), offsets and tool lengths the caller did not give, G28 without a home (the
-//! axes it names are unknown until programmed absolutely again; the lines that ran meanwhile
-//! are named), axes B U V W that never change value. Everything else (G12.1, macros `#`,
+//! motion lines without a G word, canned cycles G73/G74/G81..G89 with G98/G99 (G80 cancels;
+//! `super::cycles`), G54..G59 with caller-given offsets, G43 H with caller-given tool
+//! lengths, G28/G53 with a caller-given home, G30 with a caller-given G30 position. Passed
+//! through with a warning (each word once, [`Warning`]), or refused under `strict`: comments,
+//! `%`, O numbers (words after one on its line are read), N, S, T, D, H, M codes (vendor ones
+//! included), F-only lines, G40/G41/G42, G49, G61/G64, G80, what a cycle does that the path
+//! cannot show (pecks' clearance, tapping's spindle reversal, G86-G88's spindle stop and
+//! manual retract), block delete `/` at the start of a block or in mid-block (read with the
+//! switch off), offsets and tool lengths the caller did not give, G28/G30 without their
+//! position (the axes they name are unknown until programmed absolutely again; the lines
+//! that ran meanwhile are named), axes B U V W that never change value. Everything else (G12.1, macros `#`,
 //! CYCLE800, a moving B axis, ...) is an error naming the line and the code.
 //!
 //! [`parse`] is the reader as it was before warnings: what it accepted then passes silently,
 //! everything else is [`Error::UnsupportedCode`]. Tests are in `super::tests`.
 
 use super::cycles::Cycle;
-use super::lexer::{Lexed, g_name, lex, word_name};
+use super::lexer::{Lexed, lex, word_name};
 use super::options::{Legacy, Mode, Notes, ReadOptions, Warning};
 use super::trace::LineFrame;
 use crate::motion::error::Error;
@@ -169,55 +172,15 @@ pub(super) struct Reader<'a> {
 
 /// What the G words of one line asked for, beyond modal state.
 #[derive(Default)]
-struct LineCodes {
-    motion: Option<MotionMode>,
-    dwell: bool,
-    tool_length: bool,
-    home: Option<u32>,
-    cycle: Option<u32>,
+pub(super) struct LineCodes {
+    pub(super) motion: Option<MotionMode>,
+    pub(super) dwell: bool,
+    pub(super) tool_length: bool,
+    pub(super) home: Option<u32>,
+    pub(super) cycle: Option<u32>,
 }
 
 impl Reader<'_> {
-    /// Names the words of a line that do not move anything.
-    fn passive_words(&mut self, line: usize, l: &Lexed) -> Result<(), Error> {
-        use Legacy::{Accepted, Refused};
-        let n = &mut self.notes;
-        if l.block_delete {
-            n.note(
-                line,
-                "/",
-                "block delete read with the switch off: the block is executed",
-                Refused,
-            )?;
-        }
-        if l.percent {
-            n.note(line, "%", "tape start/end mark passed through", Accepted)?;
-        }
-        if let Some(o) = &l.program_number {
-            n.note(line, o.clone(), "program number passed through", Accepted)?;
-        }
-        if l.comment {
-            n.note(line, "comment", "comments are passed through", Accepted)?;
-        }
-        if l.numbered {
-            n.note(line, "N", "line numbers are passed through", Accepted)?;
-        }
-        let w = &l.words;
-        for (letter, what) in [
-            (b'S', "spindle speed: not modelled"),
-            (b'T', "tool select: not modelled"),
-            (
-                b'D',
-                "cutter radius offset number: the programmed tool-tip path is used",
-            ),
-        ] {
-            if let Some(v) = w.get(letter) {
-                n.note(line, word_name(letter as char, v), what, Accepted)?;
-            }
-        }
-        Ok(())
-    }
-
     /// Reads one lexed line; returns true when the program ends (M2/M30).
     fn apply(&mut self, line: usize, l: &Lexed) -> Result<bool, Error> {
         use Legacy::{Accepted, Refused};
@@ -225,113 +188,7 @@ impl Reader<'_> {
         let w = &l.words;
         let mut c = LineCodes::default();
         for &g in &l.gcodes {
-            let name = g_name(g);
-            let mut set_motion = |mm: MotionMode| {
-                if c.motion.is_some() || c.cycle.is_some() {
-                    return Err(Error::gcode(
-                        line,
-                        "two motion codes (G0/G1/G2/G3 or a cycle) on one line",
-                    ));
-                }
-                c.motion = Some(mm);
-                Ok(())
-            };
-            match g {
-                0 => set_motion(MotionMode::Rapid)?,
-                10 => set_motion(MotionMode::Linear)?,
-                20 => set_motion(MotionMode::ArcCw)?,
-                30 => set_motion(MotionMode::ArcCcw)?,
-                40 => c.dwell = true,
-                170 => self.m.plane = Plane::Xy,
-                180 => self.m.plane = Plane::Zx,
-                190 => self.m.plane = Plane::Yz,
-                200 => self.m.inch = true,
-                210 => self.m.inch = false,
-                400 => self.notes.note(line, name, "cutter compensation cancel", Accepted)?,
-                410 | 420 => self.notes.note(
-                    line,
-                    name,
-                    "cutter radius compensation is not modelled: the programmed tool-tip path is used",
-                    Refused,
-                )?,
-                280 | 300 | 530 => {
-                    self.notes.modelled(line, name)?;
-                    c.home = Some(g);
-                }
-                430 => {
-                    self.notes.modelled(line, name)?;
-                    c.tool_length = true;
-                }
-                440 => self.notes.note(
-                    line,
-                    name,
-                    "negative tool length compensation is not modelled: the programmed tool-tip path is used",
-                    Refused,
-                )?,
-                434 => self.m.rtcp = true,
-                490 => {
-                    self.m.rtcp = false;
-                    self.m.tool_mm = 0.0;
-                    self.notes.note(line, name, "tool length compensation cancelled", Accepted)?;
-                }
-                540..=590 if g % 10 == 0 => self.work_offset(line, g)?,
-                610 | 611 | 640 => self.notes.note(
-                    line,
-                    name,
-                    "path-control mode is not modelled: the service's own look-ahead is used",
-                    Refused,
-                )?,
-                150 | 500 | 501 | 670 | 690 => self.notes.note(
-                    line,
-                    name,
-                    "cancel of a mode the reader does not model: no effect",
-                    Refused,
-                )?,
-                800 => {
-                    self.m.cycle = None;
-                    self.notes.note(line, name, "canned cycle cancel", Accepted)?;
-                }
-                730 | 810 | 820 | 830 | 850 => {
-                    self.notes.modelled(line, name.clone())?;
-                    if c.motion.is_some() || c.cycle.is_some() {
-                        return Err(Error::gcode(line, "two motion codes (G0/G1/G2/G3 or a cycle) on one line"));
-                    }
-                    if matches!(g, 730 | 830) {
-                        self.notes.note(
-                            line,
-                            name,
-                            "pecks (Q) retract along the hole's axis: the path is fed straight to Z, the peck time is not modelled",
-                            Refused,
-                        )?;
-                    }
-                    c.cycle = Some(g / 10);
-                    // Cycles share G0..G3's modal group: after G80 nothing is in force.
-                    self.m.motion = None;
-                }
-                900 => self.m.incremental = false,
-                910 => self.m.incremental = true,
-                901 | 911 => {
-                    self.notes.modelled(line, name)?;
-                    self.m.absolute_centres = g == 901;
-                }
-                930 => {
-                    if !self.m.inverse_time {
-                        self.m.feed_mm_min = None;
-                    }
-                    self.m.inverse_time = true
-                }
-                940 => {
-                    if self.m.inverse_time {
-                        self.m.feed_mm_min = None;
-                    }
-                    self.m.inverse_time = false
-                }
-                980 | 990 => {
-                    self.notes.modelled(line, name)?;
-                    self.m.to_initial = g == 980;
-                }
-                _ => return Err(Error::UnsupportedCode { line, code: name }),
-            }
+            self.g_code(line, g, &mut c)?;
         }
         for kw in &l.keywords {
             self.m.rtcp = *kw == "TRAORI";
@@ -365,11 +222,13 @@ impl Reader<'_> {
         let scale = self.scale();
         if c.dwell {
             self.dwell(line, l, c.motion.is_some())?;
-            return Ok(ends);
+            if c.motion.is_none() {
+                return Ok(ends);
+            }
         }
         if let Some(p) = w.get(b'P') {
             let in_cycle = c.cycle.is_some() || self.m.cycle.is_some();
-            if !in_cycle {
+            if !in_cycle && !c.dwell {
                 self.notes
                     .note(line, word_name('P', p), "not used by the motion", Accepted)?;
             }
@@ -405,8 +264,18 @@ impl Reader<'_> {
         }
         let has_arc_words = [b'I', b'J', b'K', b'R'].iter().any(|&k| w.get(k).is_some());
         if !has_axis {
+            let arc = matches!(self.m.motion, Some(MotionMode::ArcCw | MotionMode::ArcCcw));
+            if arc && w.get(b'R').is_none() && has_arc_words {
+                // G2 I.5 J.5: a full circle back to where it starts (Fanuc, LinuxCNC).
+                self.motion_block(line, l, true)?;
+                return Ok(ends);
+            }
             if has_arc_words {
-                return Err(Error::gcode(line, "I/J/K/R given without an end point"));
+                return Err(Error::gcode(
+                    line,
+                    "I/J/K/R given without an end point (only a G2/G3 full circle may omit it, \
+                     with I/J/K)",
+                ));
             }
             if w.get(b'F').is_some() && c.motion.is_none() {
                 self.notes.note(

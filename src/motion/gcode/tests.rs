@@ -445,19 +445,20 @@ proptest! {
 fn g53_and_g30_with_a_home_move_to_machine_positions() {
     let mut opts = ReadOptions {
         home_mm: Some([-5.0, -5.0, 80.0]),
+        g30_mm: Some([-7.0, -7.0, 70.0]),
         ..ReadOptions::default()
     };
     opts.work_offsets_mm[0] = Some([10.0, 0.0, 0.0]);
     let (p, w) = parse_with("G54 G0 X1 Z5\nG53 G0 Z60\nG30 X2\nG0 X0", &opts).unwrap();
     let ends: Vec<[f64; 3]> = p.blocks.iter().map(|b| b.end.xyz).collect();
-    // G53: machine Z60 (no offset); G30 X2: through program X2 (machine 12) to home X.
+    // G53: machine Z60 (no offset); G30 X2: through program X2 (machine 12) to the G30 X.
     assert_eq!(
         ends,
         vec![
             [11.0, 0.0, 5.0],
             [11.0, 0.0, 60.0],
             [12.0, 0.0, 60.0],
-            [-5.0, 0.0, 60.0],
+            [-7.0, 0.0, 60.0],
             [10.0, 0.0, 60.0]
         ]
     );
@@ -470,4 +471,85 @@ fn g53_and_g30_with_a_home_move_to_machine_positions() {
         w.iter()
             .any(|w| w.line == 3 && w.message.contains("unknown"))
     );
+}
+
+#[test]
+fn g30_without_its_position_is_not_the_home() {
+    // A home alone does not say where G30 goes: its axes are unknown, named on its line.
+    let opts = ReadOptions {
+        home_mm: Some([0.0, 0.0, 100.0]),
+        ..ReadOptions::default()
+    };
+    let (p, w) = parse_with("G0 X1 Z5\nG91 G30 Z0\nG90 G0 X3\nG0 Z7", &opts).unwrap();
+    let lines: Vec<usize> = p.blocks.iter().map(|b| b.line).collect();
+    assert_eq!(lines, vec![1, 4]);
+    let g30 = w.iter().find(|w| w.word == "G30").unwrap();
+    assert_eq!(g30.line, 2);
+    assert!(g30.message.contains("no G30 position"), "{g30:?}");
+    let strict = ReadOptions {
+        strict: true,
+        ..opts.clone()
+    };
+    let e = parse_with("G0 X1 Z5\nG91 G30 Z0", &strict).unwrap_err();
+    assert!(
+        matches!(e, Error::Gcode { line: 2, ref message } if message.starts_with("G30")),
+        "{e:?}"
+    );
+    // With it, strict reads it: the position is modelled.
+    let given = ReadOptions {
+        g30_mm: Some([1.0, 2.0, 50.0]),
+        ..strict
+    };
+    let (p, _) = parse_with("G0 X1 Z5\nG91 G30 Z0", &given).unwrap();
+    assert_eq!(p.blocks.last().unwrap().end.xyz, [1.0, 0.0, 50.0]);
+}
+
+#[test]
+fn block_delete_in_mid_block_reads_the_optional_words() {
+    // Mastercam's Haas post: coolant made optional in mid-block.
+    let text = "G0 X0 Y0\nG43 H6 Z.25 /M8\nG1 Z-1 F100";
+    let (p, w) = lenient(text);
+    assert_eq!(p.blocks[1].end.xyz, [0.0, 0.0, 0.25]);
+    let slash = w.iter().find(|w| w.word == "/ (mid-block)").unwrap();
+    assert_eq!(slash.line, 2);
+    assert!(w.iter().any(|w| w.word == "M8" && w.line == 2));
+    let (line, message) = strict_error("G0 X0 Y0\nG0 Z.25 /M8");
+    assert_eq!(line, 2);
+    assert!(message.starts_with("/ (mid-block)"), "{message}");
+    // At the start of a block with an axis word after a mid-block slash: both read.
+    let (p, _) = lenient("/G0 X1 /Y2");
+    assert_eq!(p.blocks[0].end.xyz, [1.0, 2.0, 0.0]);
+}
+
+#[test]
+fn words_after_a_program_number_are_read() {
+    let (p, w) = lenient("O1234 G0 X5 Y6\nG1 X7 F100");
+    assert_eq!(p.blocks[0].end.xyz, [5.0, 6.0, 0.0]);
+    assert!(
+        w.iter()
+            .any(|w| w.word == "O1234 (with words)" && w.line == 1)
+    );
+    let (line, message) = strict_error("G0 X1\nO1234 G0 X5");
+    assert_eq!(line, 2);
+    assert!(message.starts_with("O1234"), "{message}");
+    // The program-number line alone is still just named.
+    let (_, w) = lenient("O1234 (PART)\nG0 X1");
+    assert!(w.iter().any(|w| w.word == "O1234"));
+    assert!(!w.iter().any(|w| w.word.contains("with words")));
+    assert_eq!(word_spans("O1234 G0 X5").len(), 2);
+}
+
+#[test]
+fn vendor_m_codes_are_warnings() {
+    // Haas: M31 chip auger, M88 through-spindle coolant; Fanuc: M29 rigid tapping, M19.
+    let text = "G0 X1\nM31\nM88\nM29 S600\nM19\nG0 X2";
+    let (p, w) = lenient(text);
+    assert_eq!(p.blocks.len(), 2);
+    for (word, line) in [("M31", 2), ("M88", 3), ("M29", 4), ("M19", 5)] {
+        let named = w.iter().find(|w| w.word == word).unwrap();
+        assert_eq!(named.line, line, "{word}");
+    }
+    let (line, message) = strict_error("G0 X1\nM31");
+    assert_eq!(line, 2);
+    assert!(message.starts_with("M31"), "{message}");
 }

@@ -41,20 +41,24 @@ pub struct WordSpan {
 }
 
 /// Words of `raw` (one source line) with their byte ranges, in order: comments `( )` and
-/// `;`, a block-delete `/`, `%` and program-number lines (`O1234`, `:1234`) and keywords
-/// (TRAORI) give no words. Meant for lines the reader accepted; a character that is not part
-/// of a word is skipped.
+/// `;`, a block-delete `/`, `%` lines, a leading program number (`O1234`, `:1234`; the words
+/// after it are given) and keywords (TRAORI) give no words. Meant for lines the reader
+/// accepted; a character that is not part of a word is skipped.
 pub fn word_spans(raw: &str) -> Vec<WordSpan> {
     let bytes = raw.as_bytes();
     let mut out = Vec::new();
     let first = raw.trim_start().trim_start_matches('/').trim_start();
-    if first.starts_with('%') || first.starts_with('O') || first.starts_with('o') {
-        return out;
-    }
-    if first.starts_with(':') {
+    if first.starts_with('%') {
         return out;
     }
     let mut i = 0;
+    if first.starts_with(['O', 'o', ':']) {
+        // Skip the program number itself.
+        i = raw.len() - first.len() + 1;
+        while i < bytes.len() && bytes[i].is_ascii_digit() {
+            i += 1;
+        }
+    }
     while i < bytes.len() {
         let b = bytes[i];
         match b {
