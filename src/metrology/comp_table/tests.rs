@@ -340,8 +340,8 @@ fn tables_cut_e_and_m_by_80_percent_on_their_own_and_a_second_run() {
         }
     }
     for (k, (name, _)) in modes.iter().enumerate() {
-        for r in 0..if *name == "model" { 3 } else { 2 } {
-            let (e, m) = worst[k][r];
+        let runs = if *name == "model" { 3 } else { 2 };
+        for (r, &(e, m)) in worst[k].iter().enumerate().take(runs) {
             println!(
                 "goal >= 80 %: {name} table on run {}: worst E cut {:.1} %, worst M cut {:.1} %",
                 r + 1,
