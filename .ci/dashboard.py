@@ -36,7 +36,7 @@ VIEWS = [
     ("contour", "#/m/demo/contour", 2, 1),
     ("gap-motion", "#/m/demo/gap", 4, 2),
     ("volumetric", "#/m/demo-vmc/volumetric", 6, 0),
-    ("iso230-2", "#/iso230-2", 2, 1),
+    ("iso230-2", "#/iso230-2", 3, 1),
     ("iso230-4", "#/iso230-4", 2, 0),
     ("api", "#/api", 0, 1),
 ]
@@ -58,6 +58,33 @@ PLOT_CHECK = r"""
            area: marks.length ? (x1 - x0) * (y1 - y0) : 0, nan: svg.outerHTML.includes('NaN') };
 }))()
 """
+
+# The ISO 230-2 view offers the compensation table to download: per link (a[download] with a
+# data: URL, the route's own text) the format, the file name, the positions read as LinuxCNC
+# reads them (three numbers per line up to the first other line) or under the CSV header.
+DOWNLOADS = r"""
+(() => [...document.querySelectorAll('main a[download]')].map((a) => {
+  const text = decodeURIComponent(a.getAttribute('href').replace(/^data:[^,]*,/, ''));
+  const lines = text.split('\n');
+  let rows = 0;
+  if (a.dataset.format === 'linuxcnc') {
+    for (const l of lines) {
+      const v = l.trim().split(/\s+/).slice(0, 3).map(Number);
+      if (v.length < 3 || !v.every(Number.isFinite)) break;
+      rows++;
+    }
+  } else {
+    const at = lines.indexOf('position_mm,forward_correction_mm,backward_correction_mm');
+    rows = at < 0 ? 0 : lines.slice(at + 1).filter((l) => l.split(',').length === 3 &&
+      l.split(',').map(Number).every(Number.isFinite)).length;
+  }
+  return { format: a.dataset.format, name: a.getAttribute('download'), rows,
+           sign: text.includes('# sign: correction = what the controller adds'),
+           type1: text.includes('COMP_FILE_TYPE = 1') };
+}))()
+"""
+# (view, formats that must be offered, fewest table rows): the example axis has 11 targets.
+WANT_DOWNLOADS = {"iso230-2": (["linuxcnc", "csv"], 11)}
 
 
 def free_port():
@@ -243,6 +270,17 @@ def main():
                     bad.append(f"plot '{p['title']}' has NaN in its SVG")
             if tables < want_tables:
                 bad.append(f"{tables} tables, expected at least {want_tables}")
+            if name in WANT_DOWNLOADS:
+                formats, rows = WANT_DOWNLOADS[name]
+                got = browser.evaluate(DOWNLOADS)
+                for fmt in formats:
+                    link = next((d for d in got if d["format"] == fmt), None)
+                    if link is None:
+                        bad.append(f"no {fmt} compensation table offered for download")
+                    elif link["rows"] < rows or not link["sign"] or (fmt == "linuxcnc" and not link["type1"]):
+                        bad.append(f"download {link['name']}: {link['rows']} rows (want {rows}+), sign stated {link['sign']}")
+                    else:
+                        print(f"       download {link['name']}: {link['rows']} positions, sign stated")
             took = time.time() - started
             summary = ", ".join(f"{p['title']} ({p['marks']} marks)" for p in plots)
             print(f"{'ok  ' if not bad else 'FAIL'} {name:12s} {route:40s} {took:5.1f} s  {len(plots)} plots  -> {path}")

@@ -31,7 +31,13 @@
     const data = h("textarea", { spellcheck: "false", "aria-label": "ISO 230-2 readings" });
     data.value = iso2302Example();
     const button = h("button", {}, "Evaluate");
-    main.append(h("form", { class: "inputs" }, h("div", {}, h("label", {}, "target, forward cycles…, backward cycles… (mm)"), data, App.fileInto(data)), h("div", {}, button)));
+    const compMode = h("select", { "aria-label": "compensation table" },
+      h("option", { value: "mode=mean" }, "mean deviation per target"),
+      h("option", { value: "mode=model&fit_cyclic=true" }, "model: scale + backlash + fitted cyclic term"),
+      h("option", { value: "mode=model" }, "model: scale + backlash"));
+    const spacing = h("input", { type: "number", step: "any", min: "0.001", placeholder: "default", "aria-label": "table spacing (mm)" });
+    main.append(h("form", { class: "inputs" }, h("div", {}, h("label", {}, "target, forward cycles…, backward cycles… (mm)"), data, App.fileInto(data)),
+      h("div", {}, h("label", {}, "compensation table"), compMode, h("label", {}, "spacing of a model table (mm)"), spacing, h("div", {}, button))));
     const out = h("div");
     main.append(out);
     await runner(button, out, async (out) => {
@@ -73,8 +79,37 @@
       });
       out.append(h("h3", {}, "Per target (µm)"), table(["target (mm)", "mean ↑", "mean ↓", "s ↑", "s ↓", "B", "R"],
         d.targets.map((t) => [t.target, ...[t.mean_fwd, t.mean_bwd, t.s_fwd, t.s_bwd, t.B, t.R].map((v) => Number((v * 1000).toFixed(2)))])));
+      await compensationTable(out, body, compMode.value + (spacing.value && compMode.value !== "mode=mean" ? `&spacing_mm=${encodeURIComponent(spacing.value)}` : ""));
     });
   });
+
+  /**
+   * The axis's pitch-error compensation table of the evaluated readings: the predicted E and M
+   * with it, the corrections per direction, and the LinuxCNC file and CSV to download (the
+   * route's own text, as data: links so nothing is fetched again).
+   */
+  async function compensationTable(out, body, query) {
+    const c = await api("POST", `/v1/iso230-2/compensation?${query}`, body);
+    out.append(h("h3", {}, "Compensation table for the controller"),
+      h("p", { class: "note" }, "Correction = what the controller adds to the commanded position = −(mean deviation), per approach direction; interpolated between positions as LinuxCNC does. E and M after are predicted on these readings (each plus its correction)."),
+      figures([[`${um(c.before.E)} → ${um(c.after.E)}`, "E with the table"], [`${um(c.before.M)} → ${um(c.after.M)}`, "M with the table"],
+        [String(c.positions.length), c.mode === "model" ? `positions every ${c.spacing_mm} mm (model)` : "positions (the targets)"]]));
+    const plots = h("div", { class: "plots" });
+    out.append(plots);
+    Plot.lines(plots, {
+      title: "Compensation table: correction added to the command",
+      xlabel: "position (mm)", ylabel: "correction (µm)", hline: 0,
+      series: [{ x: c.positions, y: c.forward_correction.map((v) => v * 1000), label: "↑ forward", colour: "#1f5f99", width: 2, dots: c.mode === "mean" },
+        { x: c.positions, y: c.backward_correction.map((v) => v * 1000), label: "↓ backward", colour: "#c0392b", width: 2, dots: c.mode === "mean" }],
+    });
+    const mode = c.mode;
+    const links = await Promise.all([["linuxcnc", "txt", "LinuxCNC compensation file (COMP_FILE_TYPE = 1)"], ["csv", "csv", "CSV"]].map(async ([format, ext, label]) => {
+      const text = await api("POST", `/v1/iso230-2/compensation?format=${format}&${query}`, body);
+      return h("a", { class: "download", "data-format": format, download: `iso230-2-${mode}-comp.${ext}`,
+        href: `data:text/plain;charset=utf-8,${encodeURIComponent(text)}` }, `Download ${label}`);
+    }));
+    out.append(h("p", { class: "links" }, ...links));
+  }
 
   /** Example: a 50 mm circle, 720 points: 3 µm two-lobe ellipse, quadrant reversal spikes, 0.3 µm noise. */
   function iso2304Example() {

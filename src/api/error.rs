@@ -428,7 +428,10 @@ impl From<metrology::Error> for ApiError {
             | E::LengthMismatch { .. }
             | E::DuplicateTarget { .. }
             | E::Invalid { .. } => ApiError::bad_request(e.to_string()),
-            E::TooFew { .. } | E::Degenerate { .. } | E::MissingReadings { .. } => {
+            E::TooFew { .. }
+            | E::Degenerate { .. }
+            | E::MissingReadings { .. }
+            | E::Unresolvable { .. } => {
                 ApiError::unprocessable(e.to_string())
             }
         }

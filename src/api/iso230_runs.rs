@@ -41,7 +41,8 @@ const FIGURES: [&str; 12] = [
     "A", "A_fwd", "A_bwd", "E", "E_fwd", "E_bwd", "M", "R", "R_fwd", "R_bwd", "B", "B_avg",
 ];
 
-fn check_axis(axis: &Id) -> ApiResult<()> {
+/// Refuses an axis letter that is not one of [`AXES`] (400, naming them).
+pub(super) fn check_axis(axis: &Id) -> ApiResult<()> {
     if AXES.contains(&axis.as_str()) {
         Ok(())
     } else {

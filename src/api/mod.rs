@@ -18,6 +18,7 @@ pub mod gap;
 pub mod health;
 pub mod id;
 pub mod iso230;
+pub mod iso230_comp;
 pub mod iso230_runs;
 pub mod jobs;
 pub mod lookup;
@@ -89,6 +90,7 @@ pub fn router(state: AppState) -> Router {
         .merge(compensated::routes())
         .merge(iso230::routes())
         .merge(iso230_runs::routes())
+        .merge(iso230_comp::routes())
         .fallback(middleware::fallback)
         // Innermost first: auth sees only routed requests; the problem+json rewrite covers
         // framework rejections (405, path errors); metrics see the final status.

@@ -80,6 +80,15 @@ pub enum Error {
         /// The allowed range, as a sentence.
         reason: &'static str,
     },
+    /// The request asks for something the run cannot give (a cyclic pitch its targets cannot
+    /// resolve, a table longer than the controller loads); the sentence names the fix.
+    #[error("{field}: {reason}")]
+    Unresolvable {
+        /// Name of the parameter or input.
+        field: &'static str,
+        /// Why, and what to change, as a sentence.
+        reason: String,
+    },
     /// The points do not define a circle (collinear, coincident, or too few).
     #[error("{field}: the points do not define a circle ({reason})")]
     Degenerate {

@@ -3,3 +3,4 @@
 
 pub mod contour;
 pub mod iso230;
+pub mod iso230_comp;

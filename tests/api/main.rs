@@ -18,6 +18,7 @@ mod gap;
 mod hardening;
 mod instances;
 mod iso230;
+mod iso230_comp;
 mod iso230_trace;
 mod jobs_cancel;
 mod jobs_models;
