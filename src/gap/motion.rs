@@ -58,7 +58,10 @@ impl Default for MotionOptions {
             max_spans: 20,
             threads: 2,
             max_steps: 4,
-            min_explained: 0.5,
+            // tuned on self-check seeds 20000-20011 (kinds 1-8): library truths left at most
+            // 10 % of the held-out gap above the noise (most 0 %), out-of-library ones
+            // 31-56 % (a library effect removing 44-69 % of it)
+            min_explained: 0.8,
             min_excess_noise: 1.0,
         }
     }

@@ -39,6 +39,8 @@ pub struct CaseResult {
     pub steps: Vec<Effect>,
     /// Held-out share of the gap above the noise that the steps leave (`unexplained`).
     pub unexplained_share: f64,
+    /// The truth plant, as drawn (Debug text).
+    pub truth_detail: String,
 }
 
 /// Summary of a self-check run.
@@ -248,6 +250,7 @@ fn run_case_inner(
         where_top,
         steps: d.steps.iter().map(|s| s.fitted.effect()).collect(),
         unexplained_share: d.unexplained.heldout_share,
+        truth_detail: format!("{truth:?}"),
     })
 }
 
