@@ -37,6 +37,10 @@ pub struct CaseResult {
     pub where_top: String,
     /// Effects in `steps`, in order.
     pub steps: Vec<Effect>,
+    /// Held-out share of the gap above the noise that the steps leave (`unexplained`).
+    pub unexplained_share: f64,
+    /// The truth plant, as drawn (Debug text).
+    pub truth_detail: String,
 }
 
 /// Summary of a self-check run.
@@ -52,6 +56,9 @@ pub struct SelfCheckReport {
     pub false_alarm_rate: f64,
     /// Per truth class with `where_ok`: (class, right, right by the strict reading, cases).
     pub where_accuracy: Vec<(String, usize, usize, usize)>,
+    /// Out-of-library cases answered `unexplained` or named with a held-out unexplained
+    /// share of at least 50 % (issue 23's gate), and all out-of-library cases.
+    pub outside_answered: (usize, usize),
 }
 
 fn random_servo(axes: usize, rng: &mut impl rand::Rng) -> Vec<ServoAxis> {
@@ -242,6 +249,8 @@ fn run_case_inner(
         where_strict: where_check.map(|c| c.1),
         where_top,
         steps: d.steps.iter().map(|s| s.fitted.effect()).collect(),
+        unexplained_share: d.unexplained.heldout_share,
+        truth_detail: format!("{truth:?}"),
     })
 }
 
@@ -327,7 +336,19 @@ pub fn run(cases: usize, seed: u64, opts: &MotionOptions) -> Result<SelfCheckRep
             )
         })
         .collect();
+    let outside: Vec<&CaseResult> = cases
+        .iter()
+        .filter(|c| c.truth == "out_of_library")
+        .collect();
+    let answered = outside
+        .iter()
+        .filter(|c| {
+            c.verdict == Effect::Unexplained
+                || (c.verdict != Effect::None && c.unexplained_share >= 0.5)
+        })
+        .count();
     Ok(SelfCheckReport {
+        outside_answered: (answered, outside.len()),
         where_accuracy,
         accuracy: correct as f64 / scored.len().max(1) as f64,
         median_shrink: shrinks.get(shrinks.len() / 2).copied().unwrap_or(0.0),
@@ -341,6 +362,7 @@ impl SelfCheckReport {
     pub fn render(&self) -> String {
         let verdicts: Vec<Effect> = std::iter::once(Effect::None)
             .chain(Effect::LIBRARY)
+            .chain([Effect::Unexplained])
             .collect();
         let mut truths: Vec<String> = verdicts.iter().map(|e| e.name().to_string()).collect();
         truths.push("out_of_library".into());
@@ -367,6 +389,11 @@ impl SelfCheckReport {
             100.0 * self.accuracy,
             100.0 * self.median_shrink,
             100.0 * self.false_alarm_rate
+        );
+        let (answered, outside) = self.outside_answered;
+        out += &format!(
+            "out of library answered unexplained (or named leaving >= 50 % held-out): \
+             {answered}/{outside}\n"
         );
         for (class, ok, strict, total) in &self.where_accuracy {
             out += &format!(

@@ -30,6 +30,8 @@ pub enum Truth {
     VelocityLoopGain(usize, f64),
     /// Out of library: straightness, `pos[1] += c·(pos[0] − x0)²`.
     Straightness(f64, f64),
+    /// Out of library: the plants of [`crate::gap::truth_outside`].
+    Outside(crate::gap::truth_outside::Outside),
 }
 
 impl Truth {
@@ -44,7 +46,9 @@ impl Truth {
             Truth::Scale(_) => Effect::ScaleError,
             Truth::Cyclic(..) => Effect::CyclicError,
             Truth::Thermal(..) => Effect::ThermalDrift,
-            Truth::VelocityLoopGain(..) | Truth::Straightness(..) => return None,
+            Truth::VelocityLoopGain(..) | Truth::Straightness(..) | Truth::Outside(_) => {
+                return None;
+            }
         })
     }
 }
@@ -111,14 +115,7 @@ pub fn draw(kind: usize, servo: &[ServoAxis], duration_s: f64, rng: &mut impl Rn
                 tau,
             )
         }
-        _ => {
-            let k = rng.random_range(0..d.min(2));
-            if servo[k].kp_v.is_some() && rng.random_bool(0.5) {
-                Truth::VelocityLoopGain(k, rng.random_range(0.4..0.7))
-            } else {
-                Truth::Straightness(sign(rng) * rng.random_range(2e-6..6e-6), 0.0)
-            }
-        }
+        _ => crate::gap::truth_outside::draw(servo, rng),
     }
 }
 
@@ -164,6 +161,9 @@ pub fn measure(
     sigma: f64,
     rng: &mut impl Rng,
 ) -> Vec<Vec<f64>> {
+    if let Truth::Outside(o) = truth {
+        return crate::gap::truth_outside::measure(servo, o, cmd, period, sigma, rng);
+    }
     let mut pos: Vec<Vec<f64>> = servo
         .iter()
         .enumerate()
