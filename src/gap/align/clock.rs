@@ -1,6 +1,8 @@
 //! The clock of a time-stamped log: the delay and rate ratio that map its stamps onto the
 //! program's time, found by matching the logged positions to the stored simulation.
 
+use std::ops::Range;
+
 use crate::gap::Error;
 use crate::numeric::brent::minimize_on_grid;
 
@@ -16,6 +18,10 @@ pub const MAX_RATE_DEVIATION: f64 = 0.02;
 pub const MIN_MOTION_MM: f64 = 0.01;
 /// Delays tried by the coarse scan (at least one period apart).
 const COARSE_STEPS: f64 = 4000.0;
+/// Stretches of the log whose delays the drift test compares.
+const DRIFT_WINDOWS: usize = 8;
+/// Standard errors the drift's slope must stand from 0.
+const DRIFT_T: f64 = 4.0;
 /// Log samples the coarse scan reads (evenly strided).
 const COARSE_SAMPLES: usize = 2000;
 /// Log samples the line search reads.
@@ -87,8 +93,13 @@ struct Fit<'a> {
 impl Fit<'_> {
     /// `Σ |log_i − sim(τ_i)|²` over every `stride`-th sample (mm²).
     fn sse(&self, p: Params, stride: usize) -> f64 {
+        self.sse_on(p, 0..self.t.len(), stride)
+    }
+
+    /// As [`Fit::sse`], over the samples `range`.
+    fn sse_on(&self, p: Params, range: Range<usize>, stride: usize) -> f64 {
         let mut s = 0.0;
-        for i in (0..self.t.len()).step_by(stride) {
+        for i in range.step_by(stride) {
             let tau = p.a + p.b * (self.t[i] - self.tc);
             for (k, col) in self.log.iter().enumerate() {
                 let e = col[i] - self.reference.read(k, tau).0;
@@ -111,11 +122,23 @@ impl Fit<'_> {
 
     /// Gauss–Newton with step halving on `a` (and `b` when `free_rate`) from `p`; returns the
     /// parameters and their misfit (mm²) over every sample.
-    fn gauss_newton(&self, mut p: Params, free_rate: bool) -> (Params, f64) {
-        let mut cur = self.sse(p, 1);
+    fn gauss_newton(&self, p: Params, free_rate: bool) -> (Params, f64) {
+        self.gauss_newton_on(p, free_rate, 0..self.t.len()).0
+    }
+
+    /// As [`Fit::gauss_newton`], on the samples `range`; also returns `Σ v²` there (mm²/s²,
+    /// the information on the delay).
+    fn gauss_newton_on(
+        &self,
+        mut p: Params,
+        free_rate: bool,
+        range: Range<usize>,
+    ) -> ((Params, f64), f64) {
+        let mut cur = self.sse_on(p, range.clone(), 1);
+        let mut info = 0.0;
         for _ in 0..40 {
             let (mut h00, mut h01, mut h11, mut g0, mut g1) = (0.0, 0.0, 0.0, 0.0, 0.0);
-            for i in 0..self.t.len() {
+            for i in range.clone() {
                 let dt = self.t[i] - self.tc;
                 let tau = p.a + p.b * dt;
                 for (k, col) in self.log.iter().enumerate() {
@@ -128,6 +151,7 @@ impl Fit<'_> {
                     g1 += v * e * dt;
                 }
             }
+            info = h00;
             if h00 <= 0.0 {
                 break;
             }
@@ -144,7 +168,7 @@ impl Fit<'_> {
                     a: p.a + step * da,
                     b: p.b + step * db,
                 };
-                let s = self.sse(q, 1);
+                let s = self.sse_on(q, range.clone(), 1);
                 if s < cur {
                     (p, cur, moved) = (q, s, true);
                     break;
@@ -155,7 +179,44 @@ impl Fit<'_> {
                 break;
             }
         }
-        (p, cur)
+        ((p, cur), info)
+    }
+
+    /// Whether the log's clock drifts against the program's at `p`: the delay refitted on each
+    /// of [`DRIFT_WINDOWS`] stretches of the log that move, then a straight line through those
+    /// delays against time; a drift when its slope is [`DRIFT_T`] standard errors from 0 (and
+    /// above 1 ppm). An effect of the machine shifts the windows' delays back and forth with
+    /// the direction of motion; only a clock moves them steadily.
+    fn drifts(&self, p: Params) -> bool {
+        let n = self.t.len();
+        let windows = DRIFT_WINDOWS.min(n / 25);
+        let fits: Vec<((Params, f64), f64)> = (0..windows)
+            .map(|w| self.gauss_newton_on(p, false, w * n / windows..(w + 1) * n / windows))
+            .collect();
+        let top = fits.iter().map(|f| f.1).fold(0.0, f64::max);
+        let points: Vec<(f64, f64)> = (0..windows)
+            .filter(|&w| fits[w].1 > 1e-3 * top)
+            .map(|w| {
+                let range = w * n / windows..(w + 1) * n / windows;
+                let t_mid = self.t[range.clone()].iter().sum::<f64>() / range.len() as f64;
+                (t_mid, fits[w].0.0.a - p.a)
+            })
+            .collect();
+        let m = points.len();
+        if m < 4 {
+            return false;
+        }
+        let tm = points.iter().map(|p| p.0).sum::<f64>() / m as f64;
+        let dm = points.iter().map(|p| p.1).sum::<f64>() / m as f64;
+        let stt: f64 = points.iter().map(|p| (p.0 - tm).powi(2)).sum();
+        let slope = points.iter().map(|p| (p.0 - tm) * (p.1 - dm)).sum::<f64>() / stt;
+        let scatter: f64 = points
+            .iter()
+            .map(|p| (p.1 - dm - slope * (p.0 - tm)).powi(2))
+            .sum::<f64>()
+            / (m - 2) as f64;
+        let se = (scatter / stt).sqrt();
+        slope.abs() > 1e-6 && slope.abs() > DRIFT_T * se
     }
 }
 
@@ -167,7 +228,9 @@ impl Fit<'_> {
 /// First a scan of the delay (rate 1) over every overlap of log and program, in at most 4,000
 /// steps of at least one period on at most 2,000 samples; then Brent's line search between the
 /// best scan point's neighbours (and those of up to five rival basins); then Gauss–Newton on the delay alone and on delay and rate
-/// together (Nocedal & Wright 2006 §10.3). The drift is kept when it removes at least
+/// together (Nocedal & Wright 2006 §10.3). The drift is kept when the delays refitted on
+/// stretches of the log move steadily with time (a slope 4 standard errors from 0: an effect
+/// of the machine moves them back and forth, a clock steadily), when it removes at least
 /// [`MIN_RATE_GAIN`] of the squared misfit and stays within 1 ± [`MAX_RATE_DEVIATION`].
 /// Reference: Nocedal & Wright, Numerical Optimization (2006), §10.3 (Gauss–Newton).
 /// Errors ([`Error::Align`], a sentence): fewer than `MIN_LOG_SAMPLES` samples; a log that does
@@ -249,7 +312,9 @@ pub fn estimate_clock(
     };
     let (p1, s1) = fit.gauss_newton(start, false);
     let (p2, s2) = fit.gauss_newton(p1, true);
-    let drift = s2 < (1.0 - MIN_RATE_GAIN) * s1 && (1.0 / p2.b - 1.0).abs() <= MAX_RATE_DEVIATION;
+    let drift = fit.drifts(p1)
+        && s2 < (1.0 - MIN_RATE_GAIN) * s1
+        && (1.0 / p2.b - 1.0).abs() <= MAX_RATE_DEVIATION;
     let (p, sse) = if drift { (p2, s2) } else { (p1, s1) };
     let clock = Clock {
         delay_s: fit.tc - p.a / p.b,

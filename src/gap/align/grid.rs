@@ -7,6 +7,9 @@ use crate::gap::motion::{GapStats, gap_stats};
 
 /// Per interval `[τ_j, τ_{j+1}]` of the log (program times, s, increasing): whether it is a gap,
 /// i.e. longer than [`super::GAP_FACTOR`] times the median interval.
+/// Formula: `gap_j = τ_{j+1} − τ_j > 3·median(Δτ)`. Reference: none (a rule of thumb: jitter
+/// of a third of the step never trips it). Known bad cases: a log with gaps in more than half
+/// its intervals has a gap-sized median and reports none.
 pub fn gaps(tau: &[f64]) -> Vec<bool> {
     let mut steps: Vec<f64> = tau.windows(2).map(|w| w[1] - w[0]).collect();
     if steps.is_empty() {
@@ -79,6 +82,8 @@ pub fn resample(
 }
 
 /// [`gap_stats`] over the observed samples only (`observed` weights 0/1; `None` = all), mm.
+/// Formula: `rms = √(Σ_{w_i=1} |m_i − s_i|² / #{w_i = 1})`, `max` over the same samples.
+/// Reference: the HTTP contract's `gap_before`. Known bad cases: none observed gives 0.
 pub fn masked_stats(
     measured: &[Vec<f64>],
     simulated: &[Vec<f64>],
@@ -118,7 +123,9 @@ pub fn observed_only<'a>(
 /// A residual (per axis, mm) with its unobserved samples filled by linear interpolation
 /// between the observed ones either side (held before the first and after the last), for the
 /// localisation and the periodic search, which read every instant; `None`: unchanged.
-/// Known bad cases: a gap hides whatever the residual did inside it.
+/// Formula: `r_i = r_a + (i − a)/(b − a)·(r_b − r_a)` for observed neighbours `a < i < b`.
+/// Reference: linear interpolation. Known bad cases: a gap hides whatever the residual did
+/// inside it.
 pub fn fill_unobserved<'a>(
     residual: &'a [Vec<f64>],
     observed: Option<&[f64]>,

@@ -316,3 +316,48 @@ fn masked_statistics_read_only_the_observed_samples() {
 fn gap_stats_all(m: &[Vec<f64>], s: &[Vec<f64>]) -> crate::gap::GapStats {
     crate::gap::motion::gap_stats(m, s)
 }
+
+#[test]
+fn unobserved_samples_do_not_reach_the_diagnosis() {
+    // the law of the hook in `diagnose_motion_structured`: whatever the placeholders at
+    // weight-0 instants hold, the diagnosis is the same, bit for bit
+    use crate::gap::motion::MotionOptions;
+    let sc = scene(Program::Rectangle, 5);
+    let n = sc.cmd[0].len();
+    let measured: Vec<Vec<f64>> = (0..2)
+        .map(|k| {
+            (0..n)
+                .map(|i| sc.at(k, i as f64 * PERIOD) + 0.004 * i as f64 / n as f64)
+                .collect()
+        })
+        .collect();
+    let hole = n / 3..n / 3 + 200;
+    let observed: Vec<f64> = (0..n)
+        .map(|i| f64::from(u8::from(i % 8 == 3 && !hole.contains(&i))))
+        .collect();
+    let mut spoiled = measured.clone();
+    for col in spoiled.iter_mut() {
+        for (i, v) in col.iter_mut().enumerate() {
+            if observed[i] == 0.0 {
+                *v += 5.0 * ((i % 7) as f64 - 3.0);
+            }
+        }
+    }
+    let opts = MotionOptions {
+        threads: 1,
+        observed: Some(observed),
+        ..MotionOptions::default()
+    };
+    let names = vec!["X".to_string(), "Y".to_string()];
+    let run = |measured: Vec<Vec<f64>>| {
+        let block = MotionBlock {
+            commanded: sc.cmd.clone(),
+            measured,
+        };
+        let d =
+            crate::gap::diagnose_motion(&names, &[servo(), servo()], PERIOD, &block, None, &opts)
+                .unwrap();
+        format!("{d:?}")
+    };
+    assert_eq!(run(measured), run(spoiled));
+}
