@@ -26,11 +26,13 @@ pub fn gaps(tau: &[f64]) -> Vec<bool> {
 /// `n_grid` instants `i·period_s`: `(measured per axis, weight per instant)`.
 ///
 /// An instant is observed (weight 1) when a log sample lies within half a period of it; its
-/// value is the log on the interval on its side of the nearest sample (interpolation), or on
-/// the other side's interval when that one is a gap (extrapolation by at most half a period).
+/// value is the simulation there plus the log's departure from the simulation, taken on the
+/// interval on its side of the nearest sample (interpolation), or on the other side's interval
+/// when that one is a gap (extrapolation by at most half a period).
 /// Unobserved instants hold the `reference` (the stored simulation) with weight 0: placeholders
 /// no fit, score or statistic reads.
-/// Formula: `m(g) = m_j + (g − τ_j)·(m_{j'} − m_j)/(τ_{j'} − τ_j)`, `j` the nearest sample.
+/// Formula: `m(g) = s(g) + r_j + (g − τ_j)·(r_{j'} − r_j)/(τ_{j'} − τ_j)`, `r = m − s`, `s` the
+/// simulation (linear between grid instants), `j` the nearest sample.
 /// Reference: linear interpolation (first-order hold) of the sampled positions.
 /// Known bad cases: a sample with a gap on both sides observes nothing; a log much slower than
 /// the grid observes one instant in many (the fit then sees only those).
@@ -72,13 +74,29 @@ pub fn resample(
         let Some(j) = side.filter(|&j| usable(j)).or(other.filter(|&j| usable(j))) else {
             continue;
         };
-        for (m, col) in measured.iter_mut().zip(log) {
-            let slope = (col[j + 1] - col[j]) / (tau[j + 1] - tau[j]);
-            m[i] = col[near] + dist * slope;
+        // interpolate the log's departure from the simulation, not the log itself: the
+        // departure is smooth where the motion is not (a 125 Hz log through a rapid's
+        // acceleration would be off by microns)
+        for ((m, col), sim) in measured.iter_mut().zip(log).zip(reference) {
+            let gap_at = |q: usize| col[q] - read(sim, period_s, tau[q]);
+            let slope = (gap_at(j + 1) - gap_at(j)) / (tau[j + 1] - tau[j]);
+            m[i] = sim[i] + gap_at(near) + dist * slope;
         }
         *w = 1.0;
     }
     (measured, observed)
+}
+
+/// The simulation `sim` (one value every `period_s` from 0) at time `tau`, linear between
+/// instants and held outside.
+fn read(sim: &[f64], period_s: f64, tau: f64) -> f64 {
+    let x = (tau / period_s).max(0.0);
+    let last = sim.len() - 1;
+    if x >= last as f64 {
+        return sim[last];
+    }
+    let i = x as usize;
+    sim[i] + (x - i as f64) * (sim[i + 1] - sim[i])
 }
 
 /// [`gap_stats`] over the observed samples only (`observed` weights 0/1; `None` = all), mm.
