@@ -75,8 +75,10 @@ pub struct CaseResult {
     pub right: Option<bool>,
     /// Pairs: whether `steps` names both planted effects.
     pub both_in_steps: Option<bool>,
-    /// `1 − rms_after/rms_before` on the validation block.
+    /// `1 − rms_after/rms_before` on the validation block (the verdict's effect alone).
     pub shrink: f64,
+    /// `1 − rms/rms_before` on the validation block with every step's effect (0 without steps).
+    pub shrink_steps: f64,
     /// Program family.
     pub program: Program,
     /// Noise σ used, mm.
@@ -329,6 +331,10 @@ fn diagnose_case(b: Built, opts: &MotionOptions, verbose: bool) -> Result<CaseRe
             1.0 - v.rms_after / v.rms_before
         } else {
             0.0
+        },
+        shrink_steps: match v.rms_steps.last() {
+            Some(r) if v.rms_before > 0.0 => 1.0 - r / v.rms_before,
+            _ => 0.0,
         },
         program: b.program,
         sigma: b.sigma,

@@ -51,6 +51,20 @@ fn median(mut v: Vec<f64>) -> f64 {
     v.get(v.len() / 2).copied().unwrap_or(0.0)
 }
 
+/// Which seed set `count` seeds from `first` belong to: "seeds A..=B (report set: never used
+/// to tune)", "(tuning set)", or that they cross from one into the other.
+pub fn seed_set(first: u64, count: usize) -> String {
+    let last = first + count.saturating_sub(1) as u64;
+    let set = if first >= REPORT_SEEDS {
+        "report set: never used to tune"
+    } else if last < REPORT_SEEDS {
+        "tuning set"
+    } else {
+        "crosses from the tuning into the report set"
+    };
+    format!("seeds {first}..={last} ({set})")
+}
+
 fn pct(a: usize, b: usize) -> f64 {
     100.0 * a as f64 / b.max(1) as f64
 }
@@ -145,15 +159,7 @@ impl SelfCheckReport {
 
     /// Which seed set the run's seeds belong to, as a sentence.
     pub fn seed_set(&self) -> String {
-        let last = self.first_seed + self.cases.len().saturating_sub(1) as u64;
-        let set = if self.first_seed >= REPORT_SEEDS {
-            "report set: never used to tune"
-        } else if last < REPORT_SEEDS {
-            "tuning set"
-        } else {
-            "crosses from the tuning into the report set"
-        };
-        format!("seeds {}..={last} ({set})", self.first_seed)
+        seed_set(self.first_seed, self.cases.len())
     }
 
     /// The confusion matrix (rows: truth, by category; columns: verdict) and the figures.
@@ -233,7 +239,17 @@ impl SelfCheckReport {
         }
         let (both, pairs) = self.pairs_both_in_steps;
         if pairs > 0 {
-            out += &format!("    pairs with both effects in steps: {both}/{pairs}\n");
+            let steps = median(
+                self.cases
+                    .iter()
+                    .filter(|c| c.category == Category::Pair)
+                    .map(|c| c.shrink_steps)
+                    .collect(),
+            );
+            out += &format!(
+                "    pairs with both effects in steps: {both}/{pairs}; median shrink with all \
+                 steps {steps:.3}\n"
+            );
         }
         let (loose, literal, total) = self
             .where_accuracy

@@ -59,17 +59,24 @@ pub fn acting_intervals(events: &[(usize, String)], friction: bool) -> Vec<(usiz
     out
 }
 
-/// The event samples of one axis at which a planted effect begins to act, for the literal
-/// reading: friction at every start, stop and reversal; a play at every reversal (the sample
-/// where the motor takes its new direction, after a dwell too) and at the first start when the
-/// slack taken up there is at least a fifth of the play (`first_slack` = that slack / play).
+/// The event samples of one axis at which a planted effect acts, for the literal reading: its
+/// reversals (the sample where the motor takes its new direction, after a dwell too) — where a
+/// friction force flips by twice its size and a play's slack is taken up; for friction on an
+/// axis that never reverses (a slowly rising Z) its starts from rest instead; for a play also
+/// the first start when the slack taken up there is at least a fifth of the play
+/// (`first_slack` = that slack / play). Starts and stops of an axis that does reverse are not
+/// counted for friction: the loose reading counts them.
 pub fn acting_events(events: &[(usize, String)], friction: bool, first_slack: f64) -> Vec<usize> {
+    let reverses = events.iter().any(|(_, l)| l.ends_with("reversal"));
     let mut out = Vec::new();
     let mut started = false;
     for (i, label) in events {
         let reversal = label.ends_with("reversal");
         let start = label.ends_with("start");
-        if friction || reversal || (start && !started && first_slack >= 0.2) {
+        let acts = reversal
+            || (friction && start && !reverses)
+            || (!friction && start && !started && first_slack >= 0.2);
+        if acts {
             out.push(*i);
         }
         started |= reversal || start;

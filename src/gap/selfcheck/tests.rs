@@ -195,3 +195,59 @@ fn two_effects_and_an_unlisted_ripple() {
     assert_eq!(d.verdict, d.steps[0].fitted.effect());
     assert_eq!(v.predicted_steps.len(), d.steps.len());
 }
+
+/// One cycle of the widened generator (13 cases, tuning seeds): every category is drawn, a
+/// pair is right exactly when either of its effects is the verdict, out-of-library plants have
+/// no right answer, no "none" case raises an alarm, and the report prints the figures
+/// (accuracy, `where` literal and loose, shrink, out-of-library answers) with its seed set.
+#[test]
+fn widened_self_check_one_cycle() {
+    use crate::gap::truth_wide::Category;
+    let r = run_with(Generator::Wide, 13, 500, &MotionOptions::default()).unwrap();
+    let text = r.render();
+    eprintln!("{text}");
+    assert_eq!(r.cases.len(), 13);
+    for (i, c) in r.cases.iter().enumerate() {
+        assert_eq!(c.category, case_category(Generator::Wide, i));
+        match c.category {
+            Category::Pair => {
+                assert_eq!(c.effects.len(), 2, "{c:?}");
+                assert_ne!(c.effects[0], c.effects[1]);
+                assert_eq!(c.right, Some(c.effects.contains(&c.verdict)));
+                let both = c.effects.iter().all(|e| c.steps.contains(e));
+                assert_eq!(c.both_in_steps, Some(both));
+            }
+            Category::OutOfLibrary => assert_eq!(c.right, None),
+            Category::None => assert_eq!(c.right, Some(c.verdict == Effect::None)),
+            _ => {
+                assert_eq!(c.effects.len(), 1, "{c:?}");
+                assert_eq!(c.right, Some(c.verdict == c.effects[0]));
+            }
+        }
+    }
+    assert_eq!(r.false_alarm_rate, 0.0);
+    for needle in [
+        "accuracy",
+        "where, literal",
+        "where, loose",
+        "median validation shrink",
+        "out-of-library answers",
+        "seeds 500..=512 (tuning set)",
+    ] {
+        assert!(text.contains(needle), "{needle} missing");
+    }
+}
+
+/// Seed sets: figures from seeds at or above `REPORT_SEEDS` say they were never used to tune;
+/// a run that crosses the boundary says so.
+#[test]
+fn reports_name_their_seed_set() {
+    use crate::gap::selfcheck_report::seed_set;
+    assert_eq!(
+        seed_set(REPORT_SEEDS, 130),
+        "seeds 1000000..=1000129 (report set: never used to tune)"
+    );
+    assert_eq!(seed_set(TUNE_SEEDS, 13), "seeds 1..=13 (tuning set)");
+    assert!(seed_set(REPORT_SEEDS - 1, 2).contains("crosses"));
+    assert!(!seed_set(REPORT_SEEDS - 2, 2).contains("crosses"));
+}

@@ -7,8 +7,8 @@ fn ev(v: &[(usize, &str)]) -> Vec<(usize, String)> {
     v.iter().map(|(i, l)| (*i, l.to_string())).collect()
 }
 
-/// Literal events: friction at every start, stop and reversal; a play at reversals, and at its
-/// first start only when the first move takes up at least a fifth of the play.
+/// Literal events: reversals (friction also at the starts of an axis that never reverses); a
+/// play also at its first start when the first move takes up at least a fifth of the play.
 #[test]
 fn acting_events_per_effect() {
     let events = ev(&[
@@ -18,12 +18,13 @@ fn acting_events_per_effect() {
         (7000, "X stop"),
         (7500, "X start"),
     ]);
-    assert_eq!(
-        acting_events(&events, true, 0.0),
-        [49, 1751, 4570, 7000, 7500]
-    );
+    assert_eq!(acting_events(&events, true, 0.0), [4570]);
     assert_eq!(acting_events(&events, false, 0.5), [49, 4570]);
     assert_eq!(acting_events(&events, false, 0.1), [4570]);
+    // a rising Z: friction acts where it starts
+    let z = ev(&[(0, "Z start"), (900, "Z stop"), (1200, "Z start")]);
+    assert_eq!(acting_events(&z, true, 0.0), [0, 1200]);
+    assert_eq!(acting_events(&z, false, 0.5), [0]);
 }
 
 fn servo() -> Vec<ServoAxis> {
@@ -60,9 +61,9 @@ fn span(axis: &str, start: usize, end: usize) -> Span {
 }
 
 /// A span that starts at the restart after the dwell is right on both readings; one that
-/// starts at the stop before it is right on the loose reading only for a play (friction acts
-/// at the stop too); a span on the still Y axis is wrong on both; the first start counts for a
-/// play only when the first move takes up its slack.
+/// starts at the stop before it is right on the loose reading only; a span on the still Y axis
+/// is wrong on both; the first start counts for a play only when the first move takes up its
+/// slack, and for friction on an axis that reverses only on the loose reading.
 #[test]
 fn literal_and_loose_where() {
     let cmd = command();
@@ -102,7 +103,9 @@ fn literal_and_loose_where() {
         judge(&play_ahead, span("X", stop, reversal - 1)),
         loose_only
     );
-    assert_eq!(judge(&friction, span("X", stop, reversal - 1)), both);
+    assert_eq!(judge(&friction, span("X", stop, reversal - 1)), loose_only);
+    assert_eq!(judge(&friction, span("X", reversal, reversal + 900)), both);
+    assert_eq!(judge(&friction, span("X", start, stop - 1)), loose_only);
     assert_eq!(
         judge(&play_ahead, span("Y", reversal, reversal + 900)),
         neither
