@@ -41,20 +41,31 @@ pub fn motion_answer(axes: &[String], d: &MotionDiagnosis) -> Value {
             if !e.at_bound.is_empty() {
                 o["at_bound"] = json!(e.at_bound);
             }
+            if !e.warnings.is_empty() {
+                o["warnings"] = json!(e.warnings);
+            }
             o
         }).collect::<Vec<_>>(),
         "verdict": d.verdict.name(),
         "gap_after": d.gap_after,
-        "steps": d.steps.iter().map(|s| json!({
-            "effect": s.fitted.effect().name(),
-            "params": params_json(&s.params),
-            "gap_after": s.gap_after,
-            "score": s.score,
-        })).collect::<Vec<_>>(),
+        "steps": d.steps.iter().map(|s| {
+            let mut o = json!({
+                "effect": s.fitted.effect().name(),
+                "params": params_json(&s.params),
+                "gap_after": s.gap_after,
+                "score": s.score,
+            });
+            if !s.warnings.is_empty() {
+                o["warnings"] = json!(s.warnings);
+            }
+            o
+        }).collect::<Vec<_>>(),
         "unexplained": {
             "rms": d.unexplained.rms,
             "share": d.unexplained.share,
+            "heldout_share": d.unexplained.heldout_share,
             "periodic": d.unexplained.periodic,
+            "patterns": d.unexplained.patterns,
         },
         "noise_mm": d.noise_mm,
     });

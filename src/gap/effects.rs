@@ -25,6 +25,9 @@ pub enum Effect {
     CyclicError,
     /// A drift growing with the block's time.
     ThermalDrift,
+    /// A verdict, never a fitted effect: the gap is well above the noise and no library
+    /// effect (nor the steps together) removes most of it on held-out data.
+    Unexplained,
 }
 
 impl Effect {
@@ -50,6 +53,7 @@ impl Effect {
             Effect::ScaleError => "scale_error",
             Effect::CyclicError => "cyclic_error",
             Effect::ThermalDrift => "thermal_drift",
+            Effect::Unexplained => "unexplained",
         }
     }
 }
@@ -131,52 +135,7 @@ pub fn cyclic_phase(x: f64, p: f64) -> f64 {
     std::f64::consts::TAU * x / p
 }
 
-/// Largest physical axis squareness, rad (1 mm/m; machines are built to tens of µrad).
-pub const MAX_SQUARENESS_RAD: f64 = 1e-3;
-/// Largest physical scale error (500 ppm = 0.5 mm/m).
-pub const MAX_SCALE: f64 = 500e-6;
-/// Largest physical cyclic-error amplitude, mm.
-pub const MAX_CYCLIC_MM: f64 = 0.05;
-/// Largest physical thermal drift over one block, mm.
-pub const MAX_DRIFT_MM: f64 = 0.5;
-
 impl Fitted {
-    /// Why these parameters are outside the physical range of their effect (`None` when
-    /// inside): |squareness| ≤ [`MAX_SQUARENESS_RAD`], |scale| ≤ [`MAX_SCALE`], cyclic
-    /// amplitude ≤ [`MAX_CYCLIC_MM`], drift over `duration_s` ≤ [`MAX_DRIFT_MM`] (friction,
-    /// gain and backlash are bounded by their searches, see `fit::at_bound`). A fit outside
-    /// these ranges explains the gap with something no machine does and is not a candidate.
-    pub fn unphysical(&self, duration_s: f64) -> Option<String> {
-        match self {
-            Fitted::AxisSquareness { alpha, .. } if alpha.abs() > MAX_SQUARENESS_RAD => {
-                Some(format!(
-                    "squareness {:.0} µrad is beyond ±{:.0} µrad",
-                    alpha * 1e6,
-                    MAX_SQUARENESS_RAD * 1e6
-                ))
-            }
-            Fitted::ScaleError { s } if s.iter().any(|s| s.abs() > MAX_SCALE) => {
-                Some(format!("scale error beyond ±{:.0} ppm", MAX_SCALE * 1e6))
-            }
-            Fitted::CyclicError { sin, cos, .. }
-                if sin
-                    .iter()
-                    .zip(cos)
-                    .any(|(a, b)| a.hypot(*b) > MAX_CYCLIC_MM) =>
-            {
-                Some(format!("cyclic amplitude beyond {MAX_CYCLIC_MM} mm"))
-            }
-            Fitted::ThermalDrift { rate, tau }
-                if rate
-                    .iter()
-                    .any(|r| (r * thermal_basis(duration_s, *tau)).abs() > MAX_DRIFT_MM) =>
-            {
-                Some(format!("drift beyond {MAX_DRIFT_MM} mm over the block"))
-            }
-            _ => None,
-        }
-    }
-
     /// Which effect these parameters belong to.
     pub fn effect(&self) -> Effect {
         match self {

@@ -8,6 +8,7 @@
 use std::collections::HashMap;
 use std::sync::{Arc, Mutex};
 
+pub use crate::gap::bounds::{SearchBounds, at_bound, at_bound_of, friction_max};
 use crate::gap::effects::{Effect, Fitted, cyclic_phase, first_direction, thermal_basis};
 use crate::gap::plant::AxisPlant;
 use crate::numeric::brent::minimize_on_grid;
@@ -26,90 +27,6 @@ pub struct FitData<'a> {
     /// of the 1-D searches is the same for every cross-validation fold and every step (the
     /// simulations depend on the command only, not on `meas`).
     pub cache: &'a SimCache,
-}
-
-/// Upper bound of the friction search for one axis: `0.1·kp_v·kv` mm/s² (cascade) or
-/// `0.1·kv` mm/s (first-order loop) — a static error of 0.1 mm, far above any real machine's.
-pub fn friction_max(p: &AxisPlant) -> f64 {
-    match p.servo.kp_v {
-        Some(kp) => kp * p.servo.kv * 0.1,
-        None => p.servo.kv * 0.1,
-    }
-}
-
-/// Search range of the position-loop gain, as ratios to the stored gain.
-pub const KV_RATIO_RANGE: (f64, f64) = (0.5, 2.0);
-/// Upper bound of the backlash search, mm.
-pub const BACKLASH_MAX_MM: f64 = 0.25;
-/// Search range of the cyclic-error pitch, mm (the top is also cut at 2/3 of the travel).
-pub const CYCLIC_PITCH_RANGE_MM: (f64, f64) = (0.5, 64.0);
-/// Shortest thermal time constant searched, as a fraction of the block's duration.
-pub const THERMAL_TAU_MIN_FRACTION: f64 = 0.05;
-
-fn near(a: f64, b: f64) -> bool {
-    (a - b).abs() <= 1e-6 * b.abs().max(1e-12)
-}
-
-/// Names (as in [`Fitted::params`]) of the parameters that ended at a bound of their search:
-/// friction at [`friction_max`], gain ratio at either end of [`KV_RATIO_RANGE`], backlash at
-/// [`BACKLASH_MAX_MM`], pitch at either end of [`CYCLIC_PITCH_RANGE_MM`], τ at
-/// [`THERMAL_TAU_MIN_FRACTION`] of `duration_s`. Such a value is where the search stopped,
-/// not a measurement of the machine.
-pub fn at_bound(
-    fitted: &Fitted,
-    axes: &[String],
-    plants: &[AxisPlant],
-    duration_s: f64,
-) -> Vec<String> {
-    let ax = |k: usize| {
-        axes.get(k)
-            .map_or_else(|| format!("axis{k}"), |a| a.to_lowercase())
-    };
-    let mut out = Vec::new();
-    match fitted {
-        Fitted::CoulombFriction { f } => {
-            for (k, &f) in f.iter().enumerate() {
-                if near(f, friction_max(&plants[k])) {
-                    let unit = if plants[k].has_velocity_loop() {
-                        "accel_mm_s2"
-                    } else {
-                        "velocity_deficit_mm_s"
-                    };
-                    out.push(format!("{}_{unit}", ax(k)));
-                }
-            }
-        }
-        Fitted::ServoGainMismatch { kv } => {
-            for (k, &kv) in kv.iter().enumerate() {
-                let r = kv / plants[k].servo.kv;
-                if near(r, KV_RATIO_RANGE.0) || near(r, KV_RATIO_RANGE.1) {
-                    out.push(format!("{}_kv_per_s", ax(k)));
-                    out.push(format!("{}_kv_ratio", ax(k)));
-                }
-            }
-        }
-        Fitted::Backlash { b, .. } => {
-            for (k, &b) in b.iter().enumerate() {
-                if near(b, BACKLASH_MAX_MM) {
-                    out.push(format!("{}_mm", ax(k)));
-                }
-            }
-        }
-        Fitted::CyclicError { pitch, sin, cos } => {
-            for (k, &p) in pitch.iter().enumerate() {
-                let active = sin[k] != 0.0 || cos[k] != 0.0;
-                if active && (near(p, CYCLIC_PITCH_RANGE_MM.0) || near(p, CYCLIC_PITCH_RANGE_MM.1))
-                {
-                    out.push(format!("{}_pitch_mm", ax(k)));
-                }
-            }
-        }
-        Fitted::ThermalDrift { tau, .. } if near(*tau, THERMAL_TAU_MIN_FRACTION * duration_s) => {
-            out.push("tau_s".to_string());
-        }
-        _ => {}
-    }
-    out
 }
 
 /// Memo of re-simulations shared by the folds of one diagnosis.
@@ -163,18 +80,33 @@ fn quadratic_grid(max: f64, n: usize) -> Vec<f64> {
         .collect()
 }
 
-/// Fits `effect` on the samples with weight 1 in `w` (full re-simulation, loss on the subset).
+/// Fits `effect` on the samples with weight 1 in `w` (full re-simulation, loss on the subset)
+/// within [`SearchBounds::FIRST`]; a fit that ends at one of those bounds is refitted once
+/// within [`SearchBounds::WIDE`] (the bounds stop a runaway search, they do not judge).
 /// Only the weighted samples decide: a choice they cannot make (the backlash start when they
 /// do not see the gap close first) falls to a fixed default, never to a fit that saw more.
 pub fn fit(effect: Effect, data: &FitData, w: &[f64]) -> Fitted {
+    let first = fit_within(effect, data, w, &SearchBounds::FIRST);
+    let n = w.len();
+    let period = data.plants.first().map_or(0.0, |p| p.period_s);
+    let duration = (n.max(2) - 1) as f64 * period;
+    if at_bound_of(&first, &[], data.plants, duration, &SearchBounds::FIRST).is_empty() {
+        first
+    } else {
+        fit_within(effect, data, w, &SearchBounds::WIDE)
+    }
+}
+
+/// [`fit`] within the search bounds `bounds`.
+pub fn fit_within(effect: Effect, data: &FitData, w: &[f64], bounds: &SearchBounds) -> Fitted {
     let axes = data.plants.len();
     match effect {
-        Effect::None => Fitted::None,
+        Effect::None | Effect::Unexplained => Fitted::None,
         Effect::CoulombFriction => {
             let f = (0..axes)
                 .map(|k| {
                     let p = &data.plants[k];
-                    let grid = quadratic_grid(friction_max(p), 14);
+                    let grid = quadratic_grid(bounds.friction_factor * friction_max(p), 14);
                     let loss = |f: f64| {
                         if grid.contains(&f) {
                             let sim = data
@@ -211,7 +143,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64]) -> Fitted {
                 };
                 let (b, _) = minimize_on_grid(
                     |b| best_start(b).1,
-                    &quadratic_grid(BACKLASH_MAX_MM, 16),
+                    &quadratic_grid(bounds.backlash_max_mm, 16),
                     16,
                     1e-2,
                 );
@@ -227,7 +159,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64]) -> Fitted {
             let kv = (0..axes)
                 .map(|k| {
                     let p = &data.plants[k];
-                    let (lo, hi) = KV_RATIO_RANGE;
+                    let (lo, hi) = bounds.kv_ratio;
                     let grid: Vec<f64> = (0..13)
                         .map(|i| p.servo.kv * lo * (hi / lo).powf(i as f64 / 12.0))
                         .collect();
@@ -314,13 +246,13 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64]) -> Fitted {
                     let b = (rc * ss - rs * sc) / det;
                     (a, b, rr - a * rs - b * rc)
                 };
-                // log-spaced pitches from 0.5 mm up to 64 mm or two thirds of the axis travel
+                // log-spaced pitches from 0.5 mm (first search) up to 64 mm or two thirds of the axis travel
                 // (a longer "period" is a smooth trend, not a cyclic error), in log-pitch
                 let (lo, hi) = x.iter().fold((f64::INFINITY, f64::NEG_INFINITY), |a, &v| {
                     (a.0.min(v), a.1.max(v))
                 });
                 let top = (hi - lo) / 1.5;
-                let (pmin, pmax) = CYCLIC_PITCH_RANGE_MM;
+                let (pmin, pmax) = bounds.pitch_mm;
                 if top.is_nan() || top < pmin {
                     pitch.push(1.0);
                     sn.push(0.0);
@@ -382,7 +314,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64]) -> Fitted {
             let mut best = fit_tau(f64::INFINITY);
             let mut best_tau = f64::INFINITY;
             for m in [
-                THERMAL_TAU_MIN_FRACTION,
+                bounds.tau_min_fraction,
                 0.1,
                 0.2,
                 0.3,

@@ -1,13 +1,16 @@
 //! Sim-to-real gap diagnosis: where simulation and measurement part, which unmodelled effect
 //! causes it, and how far the gap shrinks once that effect is added (motion and part domains).
 pub mod answer;
+pub mod bounds;
 pub mod effects;
 pub mod error;
 pub mod events;
 pub mod fit;
+pub mod judge;
 pub mod motion;
 pub mod part;
 pub mod part_selfcheck;
+pub mod patterns;
 pub mod plant;
 pub mod programs;
 pub mod request;
@@ -17,8 +20,10 @@ pub mod selfcheck_where;
 pub mod steps;
 pub mod truth;
 pub mod truth_clock;
+pub mod truth_outside;
 pub mod truth_wide;
 pub mod unexplained;
+pub mod usual;
 
 pub use answer::{motion_answer, part_answer};
 pub use effects::{Effect, Fitted};

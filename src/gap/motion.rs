@@ -7,9 +7,12 @@ use crate::gap::Error;
 use crate::gap::effects::{Effect, Fitted};
 use crate::gap::events::{Span, rank_spans};
 use crate::gap::fit::{SimCache, at_bound};
+use crate::gap::judge::{Outcome, judge};
+use crate::gap::patterns::{Pattern, patterns};
 use crate::gap::plant::AxisPlant;
 use crate::gap::steps::{Model, Problem, compose, cross_validate};
 use crate::gap::unexplained::{Periodic, periodic_components};
+use crate::gap::usual::warnings;
 use crate::motion::{ServoAxis, StructuralMode};
 use crate::numeric::parallel::map_dynamic;
 
@@ -37,6 +40,13 @@ pub struct MotionOptions {
     pub threads: usize,
     /// Most effects added one after another in `steps`.
     pub max_steps: usize,
+    /// Smallest held-out fraction of the gap above the noise that the steps together must
+    /// remove for the verdict to name an effect; below it the verdict is `unexplained`.
+    pub min_explained: f64,
+    /// Smallest mean-square gap above the noise, in units of the noise variance per axis,
+    /// for a gap to count as more than noise (below it: a named effect or `none`, never
+    /// `unexplained`).
+    pub min_excess_noise: f64,
 }
 
 impl Default for MotionOptions {
@@ -48,6 +58,8 @@ impl Default for MotionOptions {
             max_spans: 20,
             threads: 2,
             max_steps: 4,
+            min_explained: 0.5,
+            min_excess_noise: 1.0,
         }
     }
 }
@@ -70,8 +82,11 @@ pub struct EffectResult {
     pub params: Vec<(String, f64)>,
     /// Held-out fraction of the squared gap removed (blocked CV), ≤ 1; negative = worse.
     pub score: f64,
-    /// Parameters that ended at a bound of their search (names as in `params`).
+    /// Parameters still at a bound of their widened search (names as in `params`).
     pub at_bound: Vec<String>,
+    /// Sizes outside the effect's usual range: why unusual, what commonly causes them
+    /// ([`crate::gap::usual::warnings`]).
+    pub warnings: Vec<String>,
 }
 
 /// One step of the forward selection: the effect added, fitted jointly with the earlier ones.
@@ -83,6 +98,8 @@ pub struct StepResult {
     pub params: Vec<(String, f64)>,
     /// Parameters that ended at a bound of their search (always empty for a chosen step).
     pub at_bound: Vec<String>,
+    /// Sizes outside the effect's usual range ([`crate::gap::usual::warnings`]).
+    pub warnings: Vec<String>,
     /// Measured vs simulation with this and all earlier steps' effects.
     pub gap_after: GapStats,
     /// Held-out fraction of the remaining squared gap this step removed.
@@ -96,8 +113,13 @@ pub struct Unexplained {
     pub rms: f64,
     /// Part of the original squared gap left, 0..1.
     pub share: f64,
+    /// Part of the held-out squared gap above the noise that the steps leave, 0..1 (1 with
+    /// no step): `Σ SSE_held(steps) − n·d·σ̂²` over `Σ SSE_held(stored) − n·d·σ̂²`.
+    pub heldout_share: f64,
     /// Strongest periodic components of the rest.
     pub periodic: Vec<Periodic>,
+    /// What the rest is tied to (time, position, an event, speed, direction, a jump).
+    pub patterns: Vec<Pattern>,
 }
 
 /// Validation predictions (per axis columns, mm) without and with the verdict's effect.
@@ -228,11 +250,16 @@ fn check_block(
 /// and `servo` their stored models, in column order.
 ///
 /// Each library effect is fitted by re-simulation on `folds − 1` contiguous folds and scored on
-/// the held-out fold: `score = 1 − Σ SSE_effect / Σ SSE_stored` over folds. The verdict is the
-/// best effect if its score ≥ `min_score` and its held-out mean-square improvement exceeds
-/// `min_improvement_noise·σ̂²` (σ̂ from [`noise_sigma`]); otherwise `none`. Parameters reported
+/// the held-out fold: `score = 1 − Σ SSE_effect / Σ SSE_stored` over folds. An effect is a
+/// step if its score ≥ `min_score` and its held-out mean-square improvement exceeds
+/// `min_improvement_noise·σ̂²` (σ̂ from [`noise_sigma`]). The verdict is the first step's
+/// effect when the steps together remove at least `min_explained` of the held-out squared gap
+/// above the noise, `1 − (SSE_held(steps) − n·d·σ̂²) / (SSE_held(stored) − n·d·σ̂²)`;
+/// `unexplained` when they do not and the gap's mean-square excess over the noise is at
+/// least `min_excess_noise·d·σ̂²`; otherwise the first step or `none`. Parameters reported
 /// are refitted on all the main data. Bad cases: effects too small for the program to excite
-/// (e.g. scale on a tiny stroke near zero) are answered `none`.
+/// (e.g. scale on a tiny stroke near zero) are answered `none`; a σ̂ far off the true noise
+/// (quantized or filtered logs) moves the line between `none`, a name and `unexplained`.
 pub fn diagnose_motion(
     axes: &[String],
     servo: &[ServoAxis],
@@ -252,8 +279,9 @@ pub fn diagnose_motion(
 /// After the verdict, effects are added one after another ([`crate::gap::steps`]): each
 /// remaining effect is fitted jointly with those chosen and scored on the held-out folds
 /// against the model so far, with the same rule (`min_score` of the remaining held-out squared
-/// gap, `min_improvement_noise·σ̂²`); effects with unphysical fits or parameters at a search
-/// bound are never chosen. `unexplained` is what the steps leave.
+/// gap, `min_improvement_noise·σ̂²`); an effect whose parameter is still at a bound of its
+/// widened search ([`crate::gap::fit::at_bound`]) is never chosen. No size is vetoed: a size
+/// outside the effect's usual range is chosen on its held-out score and carries a warning. `unexplained` is what the steps leave.
 #[allow(clippy::too_many_arguments)]
 pub fn diagnose_motion_structured(
     axes: &[String],
@@ -337,6 +365,10 @@ pub fn diagnose_motion_structured(
     let mut effects: Vec<EffectResult> = Vec::new();
     let mut steps: Vec<StepResult> = Vec::new();
     let mut step_models: Vec<Model> = Vec::new();
+    // held-out squared gap of the stored simulation and of the steps so far (mm²); every
+    // sample is held out once, so the stored one is the whole residual's
+    let mut held_stored: f64 = residual.iter().flatten().map(|r| r * r).sum();
+    let mut held_left = held_stored;
     while steps.len() < opts.max_steps {
         let candidates: Vec<Effect> = Effect::LIBRARY
             .iter()
@@ -362,13 +394,15 @@ pub fn diagnose_motion_structured(
                 };
                 Candidate {
                     at_bound: at_bound(&fitted, axes, &plants, duration),
-                    unphysical: joint.members.iter().find_map(|m| m.unphysical(duration)),
+                    warnings: warnings(&fitted, axes, &plants, duration),
                     score: if score.is_finite() {
                         score
                     } else {
                         f64::NEG_INFINITY
                     },
                     gain: (held_old - held_new) / (n * dims) as f64,
+                    held_new,
+                    held_old,
                     fitted,
                     models,
                     joint,
@@ -377,44 +411,67 @@ pub fn diagnose_motion_structured(
             .collect();
         scored.sort_by(|a, b| b.score.total_cmp(&a.score));
         if steps.is_empty() {
-            // the ranked list: every effect alone, without the unphysical fits
+            // the ranked list: every effect alone, whatever its size (no veto by size: an
+            // unusual size carries its warning)
             effects = scored
                 .iter()
-                .filter(|c| c.unphysical.is_none())
                 .map(|c| EffectResult {
                     params: c.fitted.params(axes, &plants, duration),
                     fitted: c.fitted.clone(),
                     score: c.score,
                     at_bound: c.at_bound.clone(),
+                    warnings: c.warnings.clone(),
                 })
                 .collect();
         }
-        let Some(best) = scored.into_iter().find(|c| {
-            c.unphysical.is_none()
-                && c.at_bound.is_empty()
-                && c.score >= opts.min_score
-                && c.gain >= threshold
-        }) else {
+        let Some(best) = scored
+            .into_iter()
+            .find(|c| c.at_bound.is_empty() && c.score >= opts.min_score && c.gain >= threshold)
+        else {
             break;
         };
+        if steps.is_empty() {
+            held_stored = best.held_old;
+        }
+        held_left = best.held_new;
         fold_models = best.models;
         full = best.joint;
         let pred = full.predict(&base);
         steps.push(StepResult {
             params: best.fitted.params(axes, &plants, duration),
             at_bound: best.at_bound,
+            warnings: best.warnings,
             fitted: best.fitted,
             gap_after: gap_stats(&main.measured, &pred),
             score: best.score,
         });
         step_models.push(full.clone());
     }
-    let chosen = steps
-        .first()
-        .map(|s| s.fitted.clone())
-        .unwrap_or(Fitted::None);
-    let verdict = chosen.effect();
-    let gap_after = steps.first().map_or(gap_before, |s| s.gap_after);
+    // "none of these": a gap well above the noise that the steps together do not remove
+    // most of on held-out data is unexplained, even when a step removes part of it
+    let (outcome, heldout_share) = judge(
+        held_stored,
+        held_left,
+        noise,
+        n * dims,
+        !steps.is_empty(),
+        opts.min_explained,
+        opts.min_excess_noise,
+    );
+    let unexplained_verdict = outcome == Outcome::Unexplained;
+    let chosen = match steps.first() {
+        Some(s) if !unexplained_verdict => s.fitted.clone(),
+        _ => Fitted::None,
+    };
+    let verdict = if unexplained_verdict {
+        Effect::Unexplained
+    } else {
+        chosen.effect()
+    };
+    let gap_after = match steps.first() {
+        Some(s) if !unexplained_verdict => s.gap_after,
+        _ => gap_before,
+    };
     let after_all = full.predict(&base);
     let rest: Vec<Vec<f64>> = main
         .measured
@@ -430,7 +487,9 @@ pub fn diagnose_motion_structured(
         } else {
             0.0
         },
+        heldout_share,
         periodic: periodic_components(&rest, &base, axes, period_s),
+        patterns: patterns(&rest, &main.commanded, &base, axes, period_s),
     };
 
     let validation = validation.map(|v| {
@@ -473,9 +532,11 @@ pub fn diagnose_motion_structured(
 struct Candidate {
     fitted: Fitted,
     at_bound: Vec<String>,
-    unphysical: Option<String>,
+    warnings: Vec<String>,
     score: f64,
     gain: f64,
+    held_new: f64,
+    held_old: f64,
     models: Vec<Model>,
     joint: Model,
 }

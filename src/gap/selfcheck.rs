@@ -92,6 +92,8 @@ pub struct CaseResult {
     pub where_top: String,
     /// Effects in `steps`, in order.
     pub steps: Vec<Effect>,
+    /// Held-out share of the gap above the noise that the steps leave (`unexplained`).
+    pub unexplained_share: f64,
     /// The truth plant (main block), for reading misses.
     pub detail: String,
     /// Clock-log cases: the log's clock.
@@ -344,6 +346,7 @@ fn diagnose_case(b: Built, opts: &MotionOptions, verbose: bool) -> Result<CaseRe
             format!("{} ({}) {}..{}", s.label, s.axis, s.start, s.end)
         }),
         steps,
+        unexplained_share: d.unexplained.heldout_share,
         detail: format!("{:?}", b.truth),
         clock: b.clock,
     })

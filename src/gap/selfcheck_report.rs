@@ -44,6 +44,9 @@ pub struct SelfCheckReport {
     pub out_of_library: Vec<(String, usize)>,
     /// Pairs whose `steps` name both effects, and pairs.
     pub pairs_both_in_steps: (usize, usize),
+    /// Out-of-library cases answered `unexplained` or named with a held-out unexplained
+    /// share of at least 50 % (issue 23's gate), and all out-of-library cases.
+    pub outside_answered: (usize, usize),
 }
 
 fn median(mut v: Vec<f64>) -> f64 {
@@ -137,7 +140,19 @@ impl SelfCheckReport {
             .iter()
             .filter(|c| c.category == Category::Pair)
             .collect();
+        let outside: Vec<&CaseResult> = cases
+            .iter()
+            .filter(|c| c.category == Category::OutOfLibrary)
+            .collect();
+        let answered = outside
+            .iter()
+            .filter(|c| {
+                c.verdict == Effect::Unexplained
+                    || (c.verdict != Effect::None && c.unexplained_share >= 0.5)
+            })
+            .count();
         Self {
+            outside_answered: (answered, outside.len()),
             generator,
             first_seed,
             accuracy: right as f64 / scored.len().max(1) as f64,
@@ -166,6 +181,7 @@ impl SelfCheckReport {
     pub fn render(&self) -> String {
         let verdicts: Vec<Effect> = std::iter::once(Effect::None)
             .chain(Effect::LIBRARY)
+            .chain([Effect::Unexplained])
             .collect();
         let short = |s: &str| s.chars().take(9).collect::<String>();
         let mut out = format!(
@@ -283,6 +299,11 @@ impl SelfCheckReport {
                 .map(|(v, n)| format!("{v} {n}"))
                 .collect::<Vec<_>>()
                 .join(", ")
+        );
+        let (answered, outside) = self.outside_answered;
+        out += &format!(
+            "    answered unexplained (or named leaving >= 50 % of the held-out gap): \
+             {answered}/{outside}\n"
         );
         let nones = self
             .cases

@@ -38,6 +38,8 @@ pub enum Truth {
     /// Two effects at once: the dynamic parts (friction, gains) act in the loop together, then
     /// the play, then the geometric and thermal parts in turn.
     Pair(Box<Truth>, Box<Truth>),
+    /// Out of library: the plants of [`crate::gap::truth_outside`].
+    Outside(crate::gap::truth_outside::Outside),
 }
 
 impl Truth {
@@ -52,7 +54,10 @@ impl Truth {
             Truth::Scale(_) => Effect::ScaleError,
             Truth::Cyclic(..) => Effect::CyclicError,
             Truth::Thermal(..) => Effect::ThermalDrift,
-            Truth::VelocityLoopGain(..) | Truth::Straightness(..) | Truth::Pair(..) => {
+            Truth::VelocityLoopGain(..)
+            | Truth::Straightness(..)
+            | Truth::Pair(..)
+            | Truth::Outside(_) => {
                 return None;
             }
         })
@@ -143,14 +148,7 @@ pub fn draw(kind: usize, servo: &[ServoAxis], duration_s: f64, rng: &mut impl Rn
                 tau,
             )
         }
-        _ => {
-            let k = rng.random_range(0..d.min(2));
-            if servo[k].kp_v.is_some() && rng.random_bool(0.5) {
-                Truth::VelocityLoopGain(k, rng.random_range(0.4..0.7))
-            } else {
-                Truth::Straightness(sign(rng) * rng.random_range(2e-6..6e-6), 0.0)
-            }
-        }
+        _ => crate::gap::truth_outside::draw(servo, rng),
     }
 }
 
@@ -219,6 +217,9 @@ pub fn measure_at(
     sigma: f64,
     rng: &mut impl Rng,
 ) -> Vec<Vec<f64>> {
+    if let Truth::Outside(o) = truth {
+        return crate::gap::truth_outside::measure(servo, o, cmd, period, sigma, rng);
+    }
     let parts = truth.parts();
     let mut pos: Vec<Vec<f64>> = servo
         .iter()

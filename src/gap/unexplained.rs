@@ -82,7 +82,7 @@ fn sinusoid(u: &[f64], r: &[f64], p: f64, stride: usize) -> (f64, f64, f64, f64)
 /// The best sinusoid of `r` against the coordinate `u` over log-spaced periods in `[lo, hi]`:
 /// a grid of ≥ 40 points per decade on at most ~20,000 samples, then Brent on all samples.
 /// Returns `(period, amplitude, residual sum of squares)`.
-fn best_period(u: &[f64], r: &[f64], lo: f64, hi: f64) -> Option<(f64, f64, f64)> {
+pub(crate) fn best_period(u: &[f64], r: &[f64], lo: f64, hi: f64) -> Option<(f64, f64, f64)> {
     if !(lo > 0.0 && hi > lo * 1.05) {
         return None;
     }

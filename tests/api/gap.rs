@@ -111,9 +111,10 @@ async fn motion_backlash_found_located_and_validated(app: TestApp) {
 }
 on_both_backends!(motion_backlash_found_located_and_validated);
 
-/// A gain three times the stored one: the gain search stops at its bound (2x), the effect is
-/// flagged `at_bound` and is neither the verdict nor a step.
-async fn motion_parameter_at_a_search_bound_is_flagged_not_a_finding(app: TestApp) {
+/// Issue 23, item 1: a gain three times the stored one is far outside a machine's usual
+/// range and beyond the first search (2x). The search widens once, the gain is the verdict
+/// with its size, and the answer says why the size is unusual and where to look.
+async fn motion_gain_far_outside_its_usual_range_is_named_with_a_warning(app: TestApp) {
     let r = app.put_json("/v1/machines/m1", &machine()).await;
     assert!(r.status().is_success());
     let truth = Truth::Mismatch(vec![90.0, 30.0]);
@@ -122,33 +123,70 @@ async fn motion_parameter_at_a_search_bound_is_flagged_not_a_finding(app: TestAp
     let r = app.post_json("/v1/machines/m1/gap-diagnosis", &body).await;
     assert_eq!(r.status(), 200);
     let a: Value = r.json().await.unwrap();
-    let gain = a["effects"]
+    let step = &a["steps"][0];
+    eprintln!(
+        "goal: servo_gain_mismatch, x_kv_ratio 3 with a warning; ours {} {step}",
+        a["verdict"]
+    );
+    assert_eq!(a["verdict"], "servo_gain_mismatch", "{}", a["effects"]);
+    assert_eq!(step["effect"], "servo_gain_mismatch");
+    let ratio = step["params"]["x_kv_ratio"].as_f64().unwrap();
+    assert!((ratio - 3.0).abs() < 0.1, "{step}");
+    let warning = step["warnings"][0].as_str().expect("a warning");
+    assert!(
+        warning.starts_with("servo gain X ") && warning.contains("usual 0.7–1.4×"),
+        "{warning}"
+    );
+    let listed = a["effects"]
         .as_array()
         .unwrap()
         .iter()
         .find(|e| e["effect"] == "servo_gain_mismatch")
         .expect("listed");
+    assert!(listed.get("at_bound").is_none(), "{listed}");
+    assert_eq!(listed["warnings"], step["warnings"]);
+}
+on_both_backends!(motion_gain_far_outside_its_usual_range_is_named_with_a_warning);
+
+/// Issue 23, item 2: a loose gib of X (Y shifts sideways with X's direction) is no library
+/// effect: the answer is "unexplained", with the held-out share left and what the rest is
+/// tied to.
+async fn motion_gap_outside_the_library_is_unexplained(app: TestApp) {
+    use truecut::gap::truth_outside::Outside;
+    let r = app.put_json("/v1/machines/m1", &machine()).await;
+    assert!(r.status().is_success());
+    let truth = Truth::Outside(Outside::LooseGib {
+        axis: 0,
+        shift_mm: 0.012,
+        tau_s: 0.03,
+    });
+    let mut rng = rand::rngs::StdRng::seed_from_u64(8);
+    // random moves in both axes: X's direction is not a function of Y's position
+    let cmd = generate(Program::StopAndGo, 2, 0.001, false, &mut rng);
+    let meas = measure(&[servo(), servo()], &truth, &cmd, 0.001, 0.0003, &mut rng);
+    let body = json!({"domain": "motion", "period_s": 0.001, "commanded": rows(&cmd),
+        "measured": rows(&meas)});
+    let r = app.post_json("/v1/machines/m1/gap-diagnosis", &body).await;
+    assert_eq!(r.status(), 200);
+    let a: Value = r.json().await.unwrap();
+    let u = &a["unexplained"];
     eprintln!(
-        "goal: x_kv_ratio flagged at its bound; ours {gain}; verdict {}",
+        "goal: unexplained, tied to X's direction; ours {} {u}",
         a["verdict"]
     );
-    let flagged: Vec<&str> = gain["at_bound"]
-        .as_array()
-        .expect("at_bound")
-        .iter()
-        .map(|v| v.as_str().unwrap())
-        .collect();
-    assert!(flagged.contains(&"x_kv_ratio"), "{gain}");
-    assert_ne!(a["verdict"], "servo_gain_mismatch");
-    assert!(
-        a["steps"]
-            .as_array()
-            .unwrap()
-            .iter()
-            .all(|s| s["effect"] != "servo_gain_mismatch")
+    assert_eq!(a["verdict"], "unexplained", "{}", a["effects"]);
+    assert!(u["heldout_share"].as_f64().unwrap() > 0.5, "{u}");
+    // nothing is added for an unexplained verdict
+    assert_eq!(a["gap_after"], a["gap_before"]);
+    let p = &u["patterns"][0];
+    assert_eq!(
+        (p["axis"].as_str(), p["of"].as_str()),
+        (Some("Y"), Some("X")),
+        "{p}"
     );
+    assert!(p["description"].as_str().unwrap().contains("X"), "{p}");
 }
-on_both_backends!(motion_parameter_at_a_search_bound_is_flagged_not_a_finding);
+on_both_backends!(motion_gap_outside_the_library_is_unexplained);
 
 const PROGRAM: &str =
     "G21 G90 G17\nG0 X100 Y100\nG1 X140 F1500\nG1 Y110\nG1 X100\nG1 Y120\nG1 X140\nM30\n";
