@@ -291,6 +291,7 @@ impl From<gap::Error> for ApiError {
             | gap::Error::Request(_) => ApiError::bad_request(e.to_string()),
             gap::Error::TooManySamples { .. } => ApiError::payload_too_large(e.to_string()),
             gap::Error::MissingAxes { .. } => ApiError::unprocessable(e.to_string()),
+            gap::Error::Align(_) => ApiError::unprocessable(e.to_string()),
         }
     }
 }

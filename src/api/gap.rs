@@ -102,6 +102,15 @@ async fn gap_diagnosis(
                 return motion_from_program(&state, sim, m, req).await;
             }
             let n = req.commanded.as_ref().map_or(0, Vec::len);
+            if req.measured_t.is_some() {
+                // a time-stamped log is aligned and diagnosed while the caller waits
+                let rows = n.max(req.measured.as_ref().map_or(0, Vec::len));
+                if rows > MAX_SYNC_SAMPLES {
+                    return Err(ApiError::bad_request(format!(
+                        "a log with measured_t is diagnosed synchronously: at most {MAX_SYNC_SAMPLES} commanded rows and measured samples, got {rows}"
+                    )));
+                }
+            }
             let nv = req
                 .validation
                 .as_ref()
@@ -181,7 +190,8 @@ async fn motion_from_program(
                 lines: traj.line,
                 warnings,
             };
-            if n > 0 && have != n {
+            // a time-stamped log is put on the program's grid by the alignment instead
+            if n > 0 && have != n && req.measured_t.is_none() {
                 for c in cmd.commanded.iter_mut() {
                     let last = c.last().copied().unwrap_or(0.0);
                     c.resize(n, last);

@@ -44,8 +44,8 @@ pub enum GapCommand {
         /// on any axis, pairs, extremes) or `classic` (the fitter's own ranges).
         #[arg(long, value_enum, default_value_t = GeneratorArg::Wide)]
         generator: GeneratorArg,
-        /// Also plant logs on their own clock (delay 2-30 ms, rate 0.5-4x, jitter); opt-in:
-        /// they are read naively (stamps taken as command time) until the aligned path exists.
+        /// Also plant logs on their own clock (delay 2-30 ms, rate 0.5-4x, jitter), put on the
+        /// program's grid by the alignment of time-stamped logs (delay and rate estimated).
         #[arg(long)]
         clock_logs: bool,
         /// Override `MotionOptions::min_score` (for tuning on the tuning set).
@@ -182,12 +182,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         c.detail
                     );
                 }
-            }
-            if clock_logs {
-                println!(
-                    "clock_log cases: the log (own stamps, delay, rate, jitter) is read naively, \
-                     stamps taken as command time; no delay or rate is estimated"
-                );
             }
             print!("{}", report.render());
             if part_cases > 0 {

@@ -53,6 +53,10 @@ pub enum Error {
         /// Most rows accepted.
         max: usize,
     },
+    /// A time-stamped log cannot be put on the program's clock (too short, no motion, another
+    /// program, an ambiguous repeat); the sentence says which and what to send instead.
+    #[error("{0}")]
+    Align(String),
     /// The machine has servo models for fewer axes than the rows have columns.
     #[error(
         "machine '{machine}' has servo models for [{}] but the rows have {dims} columns: \

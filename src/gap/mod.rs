@@ -1,5 +1,6 @@
 //! Sim-to-real gap diagnosis: where simulation and measurement part, which unmodelled effect
 //! causes it, and how far the gap shrinks once that effect is added (motion and part domains).
+pub mod align;
 pub mod answer;
 pub mod bounds;
 pub mod effects;
@@ -15,6 +16,7 @@ pub mod plant;
 pub mod programs;
 pub mod request;
 pub mod selfcheck;
+pub mod selfcheck_cases;
 pub mod selfcheck_report;
 pub mod selfcheck_where;
 pub mod steps;

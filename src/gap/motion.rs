@@ -1,16 +1,19 @@
 //! Motion-domain diagnosis: simulate, localise, fit every effect by re-simulation, select by
 //! blocked cross-validation with a "none" rule, report gap before/after and validation.
 
+use std::borrow::Cow;
+
 use serde::Serialize;
 
 use crate::gap::Error;
+use crate::gap::align::{fill_unobserved, masked_stats, observed_only};
 use crate::gap::effects::{Effect, Fitted};
 use crate::gap::events::{Span, rank_spans};
 use crate::gap::fit::{SimCache, at_bound};
 use crate::gap::judge::{Outcome, judge};
 use crate::gap::patterns::{Pattern, patterns};
 use crate::gap::plant::AxisPlant;
-use crate::gap::steps::{Model, Problem, compose, cross_validate};
+use crate::gap::steps::{Model, Problem, compose, cross_validate_observed};
 use crate::gap::unexplained::{Periodic, periodic_components};
 use crate::gap::usual::warnings;
 use crate::motion::{ServoAxis, StructuralMode};
@@ -47,6 +50,9 @@ pub struct MotionOptions {
     /// for a gap to count as more than noise (below it: a named effect or `none`, never
     /// `unexplained`).
     pub min_excess_noise: f64,
+    /// Weight per main-block sample: 1 where a log sample backs it, 0 where none does (a
+    /// time-stamped log on the program's grid, [`crate::gap::align`]); `None`: every sample.
+    pub observed: Option<Vec<f64>>,
 }
 
 impl Default for MotionOptions {
@@ -60,6 +66,7 @@ impl Default for MotionOptions {
             max_steps: 4,
             min_explained: 0.5,
             min_excess_noise: 1.0,
+            observed: None,
         }
     }
 }
@@ -332,8 +339,18 @@ pub fn diagnose_motion_structured(
         .zip(&base)
         .map(|(m, b)| m.iter().zip(b).map(|(m, b)| m - b).collect())
         .collect();
-    let gap_before = gap_stats(&main.measured, &base);
-    let mut spans = rank_spans(&main.commanded, &residual, axes, opts.max_spans);
+    // a time-stamped log observes only some grid instants: fits, scores and statistics read
+    // those; localisation reads the residual filled in between them
+    let observed = opts.observed.as_deref();
+    if observed.is_some_and(|w| w.len() != n) {
+        return Err(Error::shape(
+            "observed",
+            "needs one weight per sample of the block",
+        ));
+    }
+    let gap_before = masked_stats(&main.measured, &base, observed);
+    let filled = fill_unobserved(&residual, observed);
+    let mut spans = rank_spans(&main.commanded, &filled, axes, opts.max_spans);
     if let Some(lines) = lines {
         // an event at sample j is the motion from j to j + 1: the line of sample j + 1 runs it
         for s in spans.iter_mut() {
@@ -345,7 +362,7 @@ pub fn diagnose_motion_structured(
             s.line = lines.get(at).copied();
         }
     }
-    let noise = noise_sigma(&residual);
+    let noise = noise_sigma(&observed_only(Cow::Borrowed(residual.as_slice()), observed));
     let cache = SimCache::default();
     let problem = Problem {
         plants: &plants,
@@ -355,7 +372,8 @@ pub fn diagnose_motion_structured(
         cache: &cache,
     };
     let duration = (n - 1) as f64 * period_s;
-    let all = vec![1.0; n];
+    let all = observed.map_or_else(|| vec![1.0; n], <[f64]>::to_vec);
+    let n_observed = all.iter().filter(|w| **w > 0.0).count().max(1);
     let threshold = opts.min_improvement_noise * noise * noise;
 
     // forward selection: step 0 scores every library effect against "none" (the `effects`
@@ -379,7 +397,8 @@ pub fn diagnose_motion_structured(
             break;
         }
         let results = map_dynamic(&candidates, opts.threads, |effect| {
-            let (models, held_new, held_old) = cross_validate(&problem, &fold_models, effect);
+            let (models, held_new, held_old) =
+                cross_validate_observed(&problem, &fold_models, effect, &all);
             let joint = full.with(&problem, effect, &all, 2);
             (models, held_new, held_old, joint)
         });
@@ -400,7 +419,7 @@ pub fn diagnose_motion_structured(
                     } else {
                         f64::NEG_INFINITY
                     },
-                    gain: (held_old - held_new) / (n * dims) as f64,
+                    gain: (held_old - held_new) / (n_observed * dims) as f64,
                     held_new,
                     held_old,
                     fitted,
@@ -442,7 +461,7 @@ pub fn diagnose_motion_structured(
             at_bound: best.at_bound,
             warnings: best.warnings,
             fitted: best.fitted,
-            gap_after: gap_stats(&main.measured, &pred),
+            gap_after: masked_stats(&main.measured, &pred, observed),
             score: best.score,
         });
         step_models.push(full.clone());
@@ -479,7 +498,7 @@ pub fn diagnose_motion_structured(
         .zip(&after_all)
         .map(|(m, p)| m.iter().zip(p).map(|(m, p)| m - p).collect())
         .collect();
-    let left = gap_stats(&main.measured, &after_all);
+    let left = masked_stats(&main.measured, &after_all, observed);
     let unexplained = Unexplained {
         rms: left.rms,
         share: if gap_before.rms > 0.0 {
@@ -488,8 +507,14 @@ pub fn diagnose_motion_structured(
             0.0
         },
         heldout_share,
-        periodic: periodic_components(&rest, &base, axes, period_s),
-        patterns: patterns(&rest, &main.commanded, &base, axes, period_s),
+        periodic: periodic_components(&fill_unobserved(&rest, observed), &base, axes, period_s),
+        patterns: patterns(
+            &fill_unobserved(&rest, observed),
+            &main.commanded,
+            &base,
+            axes,
+            period_s,
+        ),
     };
 
     let validation = validation.map(|v| {

@@ -8,9 +8,11 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 use serde_json::Value;
 
+use super::align::{Alignment, align_block, check_times};
 use super::answer::motion_answer;
 use super::error::Error;
 use super::motion::{MotionBlock, MotionOptions, diagnose_motion_structured};
+use super::plant::AxisPlant;
 use crate::motion::ServoAxes;
 
 /// Samples per block accepted at all.
@@ -31,6 +33,11 @@ pub struct GapRequest {
     /// Motion: measured rows, mm.
     #[serde(default)]
     pub measured: Option<Vec<Vec<f64>>>,
+    /// Motion: the measured rows' own time stamps, s, strictly increasing, on the log's clock
+    /// (any origin, any rate, jitter and gaps): the log is aligned to the program
+    /// ([`crate::gap::align`]) instead of being read one row a period.
+    #[serde(default)]
+    pub measured_t: Option<Vec<f64>>,
     /// Part: surface id.
     #[serde(default)]
     pub surface: Option<String>,
@@ -145,8 +152,16 @@ pub fn diagnose_motion_program(
     req: &GapRequest,
     program: Option<&ProgramCommand>,
 ) -> Result<Value, Error> {
-    let (main, validation, period_s, opts) = motion_inputs_with(axes, req, program)?;
+    let ((main, validation, period_s, opts), alignment) =
+        motion_inputs_aligned(axes, req, program)?;
     let dims = main.commanded.len();
+    // a timed log's grid is the program's cut or held to the log: so are its lines
+    let lines: Option<Vec<u32>> = program.map(|p| {
+        let mut lines = p.lines.clone();
+        let last = lines.last().copied().unwrap_or(1);
+        lines.resize(main.commanded[0].len(), last);
+        lines
+    });
     let d = diagnose_motion_structured(
         &axes.names[..dims],
         &axes.servo[..dims],
@@ -154,10 +169,13 @@ pub fn diagnose_motion_program(
         period_s,
         &main,
         validation.as_ref(),
-        program.map(|p| p.lines.as_slice()),
+        lines.as_deref(),
         &opts,
     )?;
     let mut answer = motion_answer(&axes.names[..dims], &d);
+    if let Some(a) = alignment {
+        answer["alignment"] = serde_json::json!(a);
+    }
     if let Some(p) = program {
         answer["warnings"] = serde_json::json!(p.warnings);
     }
@@ -183,6 +201,17 @@ pub fn motion_inputs_with(
     req: &GapRequest,
     program: Option<&ProgramCommand>,
 ) -> Result<MotionInputs, Error> {
+    motion_inputs_aligned(axes, req, program).map(|(inputs, _)| inputs)
+}
+
+/// As [`motion_inputs_with`]; with `measured_t`, the log is aligned to the stored simulation of
+/// the command and put on the program's grid ([`align_block`]): the block is that grid's, the
+/// options carry the observed instants, and the alignment is returned beside.
+pub fn motion_inputs_aligned(
+    axes: &ServoAxes,
+    req: &GapRequest,
+    program: Option<&ProgramCommand>,
+) -> Result<(MotionInputs, Option<Alignment>), Error> {
     if req.gcode.is_some() && req.commanded.is_some() {
         return Err(Error::Request(
             "send either commanded (rows) or gcode (a program), not both".into(),
@@ -231,6 +260,9 @@ pub fn motion_inputs_with(
         )
     };
     let measured = need("measured", &req.measured)?;
+    if let Some(t) = &req.measured_t {
+        check_times("measured_t", t, measured[0].len())?;
+    }
     let commanded = match program {
         Some(p) => {
             let dims = measured.len();
@@ -251,7 +283,7 @@ pub fn motion_inputs_with(
             measured.len()
         )));
     }
-    if measured[0].len() != commanded[0].len() {
+    if req.measured_t.is_none() && measured[0].len() != commanded[0].len() {
         return Err(Error::Request(format!(
             "measured has {} rows but commanded has {}: one measured row per commanded row",
             measured[0].len(),
@@ -293,19 +325,36 @@ pub fn motion_inputs_with(
     // small blocks: one thread per request (the pool runs requests side by side); large
     // blocks: the effect fits on 2 threads (benches/gap.rs: about 16 s for 100,000 samples x 3
     // axes with steps on this 2-core machine)
-    let threads = if commanded[0].len() >= 20_000 { 2 } else { 1 };
+    let (main, observed, alignment) = match &req.measured_t {
+        None => (
+            MotionBlock {
+                commanded,
+                measured,
+            },
+            None,
+            None,
+        ),
+        Some(t) => {
+            let plants: Vec<AxisPlant> = (0..dims)
+                .map(|k| {
+                    AxisPlant::new(&axes.names[k], &axes.servo[k], period_s)
+                        .map(|p| p.with_structure(axes.structure.get(k).copied().flatten()))
+                })
+                .collect::<Result<_, _>>()?;
+            let a = align_block(&plants, &commanded, t, &measured, period_s)?;
+            (a.block, Some(a.observed), Some(a.alignment))
+        }
+    };
+    let threads = if main.commanded[0].len() >= 20_000 {
+        2
+    } else {
+        1
+    };
     let opts = MotionOptions {
         folds,
         threads,
+        observed,
         ..MotionOptions::default()
     };
-    Ok((
-        MotionBlock {
-            commanded,
-            measured,
-        },
-        validation,
-        period_s,
-        opts,
-    ))
+    Ok(((main, validation, period_s, opts), alignment))
 }

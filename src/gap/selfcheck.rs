@@ -7,16 +7,13 @@
 //! and span ranking are chosen on the tuning set ([`TUNE_SEEDS`]) and figures are reported on
 //! the report set ([`REPORT_SEEDS`]), never used to tune.
 
-use rand::{RngExt, SeedableRng};
-
-use crate::gap::motion::{MotionBlock, MotionOptions, diagnose_motion};
-use crate::gap::programs::{Program, generate};
+use crate::gap::motion::{MotionOptions, diagnose_motion};
+use crate::gap::programs::Program;
+use crate::gap::selfcheck_cases::{Built, align_logs, build_classic, build_wide};
 use crate::gap::selfcheck_where::check_where;
-use crate::gap::truth::{Truth, draw, measure, measure_at};
-use crate::gap::truth_clock::{ClockSpec, draw_clock, naive_on_command_clock, resample};
-use crate::gap::truth_wide::{Category, WIDE_KINDS, draw_wide, wide_category};
+use crate::gap::truth_clock::ClockSpec;
+use crate::gap::truth_wide::{Category, WIDE_KINDS, wide_category};
 use crate::gap::{Effect, Error};
-use crate::motion::ServoAxis;
 
 pub use crate::gap::selfcheck_report::{CategoryFigures, SelfCheckReport};
 pub use crate::gap::selfcheck_where::acting_intervals;
@@ -34,8 +31,8 @@ pub enum Generator {
     Classic,
     /// The widened draws of issue 23 (cycle of [`WIDE_KINDS`] kinds).
     Wide,
-    /// The widened draws plus logs on their own clock (cycle of `WIDE_KINDS + 1`); until the
-    /// aligned path exists these logs are read naively ([`naive_on_command_clock`]).
+    /// The widened draws plus logs on their own clock (cycle of `WIDE_KINDS + 1`), put on the
+    /// program's grid by [`align_block`] (delay and rate estimated from the motion).
     WideWithClocks,
 }
 
@@ -100,146 +97,6 @@ pub struct CaseResult {
     pub clock: Option<ClockSpec>,
 }
 
-/// A case ready to diagnose.
-struct Built {
-    servo: Vec<ServoAxis>,
-    period: f64,
-    main: MotionBlock,
-    val: MotionBlock,
-    truth: Truth,
-    category: Category,
-    program: Program,
-    sigma: f64,
-    clock: Option<ClockSpec>,
-}
-
-fn random_servo(axes: usize, rng: &mut impl rand::Rng) -> Vec<ServoAxis> {
-    let cascade = rng.random_bool(0.8);
-    (0..axes)
-        .map(|_| {
-            loop {
-                let kv = rng.random_range(20.0..60.0);
-                let s = ServoAxis {
-                    kv,
-                    kff: if rng.random_bool(0.3) {
-                        0.0
-                    } else {
-                        rng.random_range(0.3..0.9)
-                    },
-                    kp_v: cascade.then(|| kv * rng.random_range(8.0..20.0)),
-                    ti_v: (cascade && rng.random_bool(0.7)).then(|| rng.random_range(0.005..0.03)),
-                    tc: (cascade && rng.random_bool(0.7)).then(|| rng.random_range(0.0002..0.0015)),
-                };
-                if s.validate().is_ok() {
-                    break s;
-                }
-            }
-        })
-        .collect()
-}
-
-/// A case of the classic generator: kind 0 none, 1..=7 the library, 8 out of library.
-fn build_classic(kind: usize, seed: u64) -> Built {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let period = 0.001;
-    let axes = if rng.random_bool(0.8) { 2 } else { 3 };
-    let servo = random_servo(axes, &mut rng);
-    let program = Program::ALL[rng.random_range(0..Program::ALL.len())];
-    let flip = rng.random_bool(0.5);
-    let cmd = generate(program, axes, period, flip, &mut rng);
-    let vcmd = generate(program, axes, period, !flip, &mut rng);
-    let duration = (cmd[0].len() - 1) as f64 * period;
-    let mut truth = draw(kind, &servo, duration, &mut rng);
-    if let Truth::Friction(f) = &mut truth {
-        // scale each axis' friction so its worst glitch is 2–6 µm (the issue's magnitude)
-        let probe = measure(
-            &servo,
-            &Truth::Friction(f.clone()),
-            &cmd,
-            period,
-            0.0,
-            &mut rng,
-        );
-        let clean = measure(&servo, &Truth::None, &cmd, period, 0.0, &mut rng);
-        for k in 0..axes {
-            let peak = probe[k]
-                .iter()
-                .zip(&clean[k])
-                .map(|(a, b)| (a - b).abs())
-                .fold(0.0, f64::max);
-            if peak > 0.0 {
-                f[k] *= rng.random_range(0.002..0.006) / peak;
-            }
-        }
-    }
-    let sigma = rng.random_range(0.0002..0.0005);
-    let meas = measure(&servo, &truth, &cmd, period, sigma, &mut rng);
-    let vmeas = measure(&servo, &truth, &vcmd, period, sigma, &mut rng);
-    Built {
-        category: match kind {
-            0 => Category::None,
-            1..=7 => Category::Single,
-            _ => Category::OutOfLibrary,
-        },
-        servo,
-        period,
-        main: MotionBlock {
-            commanded: cmd,
-            measured: meas,
-        },
-        val: MotionBlock {
-            commanded: vcmd,
-            measured: vmeas,
-        },
-        truth,
-        program,
-        sigma,
-        clock: None,
-    }
-}
-
-/// A case of the widened generator (kinds of [`wide_category`]).
-fn build_wide(kind: usize, seed: u64) -> Built {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let period = 0.001;
-    let axes = if rng.random_bool(0.7) { 2 } else { 3 };
-    let servo = random_servo(axes, &mut rng);
-    let program = Program::ALL[rng.random_range(0..Program::ALL.len())];
-    let flip = rng.random_bool(0.5);
-    let cmd = generate(program, axes, period, flip, &mut rng);
-    let vcmd = generate(program, axes, period, !flip, &mut rng);
-    let w = draw_wide(kind, &servo, &cmd, period, &mut rng);
-    let sigma = rng.random_range(0.0002..0.0005);
-    let clock = (w.category == Category::ClockLog).then(|| draw_clock(period, &mut rng));
-    let mut block = |truth: &Truth, c: &[Vec<f64>], t0: f64| match &clock {
-        None => measure_at(&servo, truth, c, period, t0, sigma, &mut rng),
-        Some(spec) => {
-            let clean = measure_at(&servo, truth, c, period, t0, 0.0, &mut rng);
-            let log = resample(&clean, period, spec, sigma, &mut rng);
-            naive_on_command_clock(&log, c[0].len(), period)
-        }
-    };
-    let meas = block(&w.main, &cmd, 0.0);
-    let vmeas = block(&w.validation, &vcmd, w.validation_t0_s);
-    Built {
-        category: w.category,
-        servo,
-        period,
-        main: MotionBlock {
-            commanded: cmd,
-            measured: meas,
-        },
-        val: MotionBlock {
-            commanded: vcmd,
-            measured: vmeas,
-        },
-        truth: w.main,
-        program,
-        sigma,
-        clock,
-    }
-}
-
 /// Runs one classic case with truth kind `kind` (0 none, 1..=7 library, 8 out of library).
 pub fn run_case(kind: usize, seed: u64, opts: &MotionOptions) -> Result<CaseResult, Error> {
     diagnose_case(build_classic(kind, seed), opts, false)
@@ -267,6 +124,8 @@ pub fn run_case_verbose(kind: usize, seed: u64, opts: &MotionOptions) -> Result<
 }
 
 fn diagnose_case(b: Built, opts: &MotionOptions, verbose: bool) -> Result<CaseResult, Error> {
+    let (b, opts, note) = align_logs(b, opts);
+    let opts = &opts;
     let axes = b.servo.len();
     let names: Vec<String> = ["X", "Y", "Z"][..axes]
         .iter()
@@ -347,7 +206,11 @@ fn diagnose_case(b: Built, opts: &MotionOptions, verbose: bool) -> Result<CaseRe
         }),
         steps,
         unexplained_share: d.unexplained.heldout_share,
-        detail: format!("{:?}", b.truth),
+        detail: if note.is_empty() {
+            format!("{:?}", b.truth)
+        } else {
+            format!("{:?}; {note}", b.truth)
+        },
         clock: b.clock,
     })
 }

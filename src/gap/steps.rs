@@ -149,15 +149,29 @@ impl Model {
 /// over the held-out samples (mm²).
 pub fn cross_validate(p: &Problem, folds: &[Model], effect: Effect) -> (Vec<Model>, f64, f64) {
     let n = p.meas.first().map_or(0, Vec::len);
+    cross_validate_observed(p, folds, effect, &vec![1.0; n])
+}
+
+/// [`cross_validate`] on the samples with `observed` weight 1 only (a log on the program's
+/// grid, `crate::gap::align`): each fold trains and tests on its observed samples.
+pub fn cross_validate_observed(
+    p: &Problem,
+    folds: &[Model],
+    effect: Effect,
+    observed: &[f64],
+) -> (Vec<Model>, f64, f64) {
+    let n = p.meas.first().map_or(0, Vec::len);
     let nf = folds.len();
     let fold_of = |i: usize| i * nf / n;
     let (mut held_new, mut held_old) = (0.0, 0.0);
     let mut out = Vec::with_capacity(nf);
     for (j, model) in folds.iter().enumerate() {
         let train: Vec<f64> = (0..n)
-            .map(|i| if fold_of(i) == j { 0.0 } else { 1.0 })
+            .map(|i| if fold_of(i) == j { 0.0 } else { observed[i] })
             .collect();
-        let test: Vec<f64> = train.iter().map(|w| 1.0 - w).collect();
+        let test: Vec<f64> = (0..n)
+            .map(|i| if fold_of(i) == j { observed[i] } else { 0.0 })
+            .collect();
         let new = model.with(p, effect, &train, 1);
         held_new += new.sse(p, &test);
         held_old += model.sse(p, &test);

@@ -173,7 +173,7 @@ fn thermal(d: usize, duration: f64, drift: (f64, f64), rng: &mut impl Rng) -> Tr
     )
 }
 
-/// One library effect at its usual size, drawn wider than the classic draws
+/// One library effect (`none` and `unexplained`: no effect) at its usual size, drawn wider than the classic draws
 /// ([`crate::gap::truth::draw`]): a play's table anywhere in its gap, a gain or squareness on
 /// any axis, a cyclic error on any axes (pitch 1–20 mm); friction glitch 2–6 µm, play 4–25 µm,
 /// gain ±5–25 %, squareness 10–80 µrad, scale 10–80 ppm, cyclic 1–5 µm, drift 3–20 µm.
@@ -187,7 +187,7 @@ pub fn draw_single(
     let d = servo.len();
     let duration = (cmd[0].len().max(2) - 1) as f64 * period;
     match effect {
-        Effect::None => Truth::None,
+        Effect::None | Effect::Unexplained => Truth::None,
         Effect::CoulombFriction => friction_with_glitch(servo, cmd, period, (0.002, 0.006), rng),
         Effect::Backlash => Truth::BacklashAt(
             (0..d).map(|_| rng.random_range(0.004..0.025)).collect(),
@@ -227,7 +227,7 @@ pub fn draw_extreme(
     let d = servo.len();
     let duration = (cmd[0].len().max(2) - 1) as f64 * period;
     match effect {
-        Effect::None => Truth::None,
+        Effect::None | Effect::Unexplained => Truth::None,
         Effect::CoulombFriction => friction_with_glitch(servo, cmd, period, (0.020, 0.060), rng),
         Effect::Backlash => {
             let k = rng.random_range(0..d);

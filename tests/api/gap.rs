@@ -471,3 +471,198 @@ fn cli_gap_csv_and_selfcheck_run() {
         "{text}"
     );
 }
+
+/// The command columns `cols` held at their end to `n` rows, then sampled `fine` times per
+/// period along their first-order hold.
+fn upsample(cols: &[Vec<f64>], n: usize, fine: usize) -> Vec<Vec<f64>> {
+    cols.iter()
+        .map(|c| {
+            let mut held = c.clone();
+            held.resize(n, c[c.len() - 1]);
+            (0..(n - 1) * fine + 1)
+                .map(|j| {
+                    let (i, f) = (j / fine, (j % fine) as f64 / fine as f64);
+                    if f == 0.0 {
+                        held[i]
+                    } else {
+                        held[i] + f * (held[i + 1] - held[i])
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+/// The program's command on m1 (2 axes, 1 ms) and the backlash truth plant's noise-free
+/// motion for it on a 0.1 ms grid, the command held `post` periods past its end.
+fn program_truth(post: usize) -> (Vec<Vec<f64>>, Vec<Vec<f64>>) {
+    use truecut::motion::{Machine, MachineDef, interpolate, parse_with};
+    let def: MachineDef = serde_json::from_value(machine()).unwrap();
+    let sim = Machine::from_def(&def).unwrap();
+    let (program, _) = parse_with(PROGRAM, &Default::default()).unwrap();
+    let traj = interpolate(&program, &sim, 0.001, 1_000_000).unwrap();
+    let cmd = vec![traj.axes[0].clone(), traj.axes[1].clone()];
+    let fine_cmd = upsample(&cmd, cmd[0].len() + post, 10);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(23);
+    let truth = Truth::Backlash(vec![0.015, 0.0], true);
+    let fine = measure(
+        &[servo(), servo()],
+        &truth,
+        &fine_cmd,
+        0.0001,
+        1e-12,
+        &mut rng,
+    );
+    (cmd, fine)
+}
+
+/// `fine` (0.1 ms grid) at program time `tau` s, at rest before the start.
+fn fine_at(fine: &[Vec<f64>], k: usize, tau: f64) -> f64 {
+    let c = &fine[k];
+    let x = (tau / 0.0001).max(0.0);
+    let i = (x as usize).min(c.len() - 2);
+    c[i] + (x - i as f64).min(1.0) * (c[i + 1] - c[i])
+}
+
+/// The program logged on its own clock: 125 Hz with ±1 ms jitter, the program starting at
+/// `delay` s of the log, `post_s` s past the program, no samples in `gap` (log seconds).
+fn timed_log(
+    fine: &[Vec<f64>],
+    delay: f64,
+    post_s: f64,
+    gap: (f64, f64),
+    seed: u64,
+) -> (Vec<f64>, Vec<Vec<f64>>) {
+    use rand::RngExt;
+    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
+    let noise = rand_distr::Normal::new(0.0, 0.0003).unwrap();
+    let end = delay + (fine[0].len() - 1) as f64 * 0.0001 + post_s;
+    let (mut t, mut rows) = (Vec::new(), Vec::new());
+    for j in 0.. {
+        let s = j as f64 / 125.0 + rng.random_range(-0.001..=0.001);
+        if s > end {
+            break;
+        }
+        if s > gap.0 && s < gap.1 {
+            continue;
+        }
+        t.push(s.max(0.0));
+        rows.push(vec![
+            fine_at(fine, 0, s - delay) + rng.sample(noise),
+            fine_at(fine, 1, s - delay) + rng.sample(noise),
+        ]);
+    }
+    (t, rows)
+}
+
+/// Issue 23 item 4: the same program logged with a 0.37 s delay, at 125 Hz instead of the
+/// interpolation period, with ±1 ms jitter and a 0.2 s gap, gives the same verdict and `where`
+/// as the aligned log, and a shrink within 0.05 of it.
+async fn motion_timed_log_gives_the_aligned_answer(app: TestApp) {
+    use rand::RngExt;
+    let r = app.put_json("/v1/machines/m1", &machine()).await;
+    assert!(r.status().is_success());
+    let post = 300;
+    let (cmd, fine) = program_truth(post);
+    let n = cmd[0].len() + post;
+    // the aligned log: one row a period from the program's start, 0.3 s past its end
+    let mut rng = rand::rngs::StdRng::seed_from_u64(24);
+    let noise = rand_distr::Normal::new(0.0, 0.0003).unwrap();
+    let aligned: Vec<Vec<f64>> = (0..n)
+        .map(|i| {
+            vec![
+                fine[0][10 * i] + rng.sample(noise),
+                fine[1][10 * i] + rng.sample(noise),
+            ]
+        })
+        .collect();
+    let delay = 0.37;
+    let gap = (delay + 2.0, delay + 2.2);
+    let (t, timed) = timed_log(&fine, delay, 0.0, gap, 25);
+    let url = "/v1/machines/m1/gap-diagnosis";
+    let body =
+        json!({"domain": "motion", "period_s": 0.001, "gcode": PROGRAM, "measured": aligned});
+    let r = app.post_json(url, &body).await;
+    assert_eq!(r.status(), 200);
+    let a: Value = r.json().await.unwrap();
+    let body = json!({"domain": "motion", "period_s": 0.001, "gcode": PROGRAM,
+        "measured": timed, "measured_t": t});
+    let r = app.post_json(url, &body).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    let shrink = |v: &Value| {
+        1.0 - v["gap_after"]["rms"].as_f64().unwrap() / v["gap_before"]["rms"].as_f64().unwrap()
+    };
+    let al = &b["alignment"];
+    eprintln!(
+        "goal: same verdict and where, shrink within 0.05. aligned ({n} rows at 1 kHz): verdict {} \
+         where[0] {} shrink {:.4}; timed ({} rows at 125 Hz, truth delay 0.37 s, rate 1, gap 0.2 s): \
+         verdict {} where[0] {} shrink {:.4}; alignment {al}",
+        a["verdict"],
+        a["where"][0],
+        shrink(&a),
+        t.len(),
+        b["verdict"],
+        b["where"][0],
+        shrink(&b),
+    );
+    assert_eq!(a["verdict"], "backlash", "{}", a["effects"]);
+    assert_eq!(b["verdict"], a["verdict"], "{}", b["effects"]);
+    for key in ["start", "end", "axis", "label", "line"] {
+        assert_eq!(b["where"][0][key], a["where"][0][key], "{key}");
+    }
+    assert!((shrink(&a) - shrink(&b)).abs() < 0.05);
+    let delay_s = al["delay_s"].as_f64().unwrap();
+    assert!((delay_s - delay).abs() < 0.0005, "{al}");
+    assert_eq!(al["rate_ratio"], 1.0, "{al}");
+    let gaps = al["gaps"].as_array().unwrap();
+    assert_eq!(gaps.len(), 1, "{al}");
+    let width = gaps[0]["t_end"].as_f64().unwrap() - gaps[0]["t_start"].as_f64().unwrap();
+    assert!((0.2..0.22).contains(&width), "{al}");
+    assert_eq!(al["samples"], t.len());
+    assert!(al["samples_before"].as_u64().unwrap() >= 45, "{al}");
+}
+on_both_backends!(motion_timed_log_gives_the_aligned_answer);
+
+/// A log that cannot be put on the program's clock answers 422 with the reason; malformed
+/// stamps answer 400 naming `measured_t`.
+async fn motion_timed_log_refusals(app: TestApp) {
+    app.put_json("/v1/machines/m1", &machine()).await;
+    let url = "/v1/machines/m1/gap-diagnosis";
+    let (_, fine) = program_truth(300);
+    let (t, log_rows) = timed_log(&fine, 0.37, 0.0, (0.0, 0.0), 26);
+    // a log of another program: a circle somewhere else on the table
+    let (_, other) = block(&Truth::None, false, 4);
+    let other_t: Vec<f64> = (0..other.len()).map(|i| 0.5 + i as f64 * 0.001).collect();
+    let body = json!({"domain": "motion", "period_s": 0.001, "gcode": PROGRAM,
+        "measured": other, "measured_t": other_t});
+    let r = app.post_json(url, &body).await;
+    assert_problem(r, 422, &["does not follow this program"]).await;
+    // too short to align
+    let body = json!({"domain": "motion", "period_s": 0.001, "gcode": PROGRAM,
+        "measured": log_rows[200..210], "measured_t": t[200..210]});
+    let r = app.post_json(url, &body).await;
+    assert_problem(r, 422, &["at least 20"]).await;
+    // stamps that go back, and one stamp short
+    let mut back = t.clone();
+    back[7] = back[5];
+    let body = json!({"domain": "motion", "period_s": 0.001, "gcode": PROGRAM,
+        "measured": log_rows, "measured_t": back});
+    let r = app.post_json(url, &body).await;
+    assert_problem(r, 400, &["measured_t[7]", "increase"]).await;
+    let body = json!({"domain": "motion", "period_s": 0.001, "gcode": PROGRAM,
+        "measured": log_rows, "measured_t": t[1..]});
+    let r = app.post_json(url, &body).await;
+    assert_problem(r, 400, &["measured_t", "one stamp"]).await;
+    // the same log against command rows instead of the program: aligned as well
+    let (cmd, _) = program_truth(0);
+    let body = json!({"domain": "motion", "period_s": 0.001, "commanded": rows(&cmd),
+        "measured": log_rows, "measured_t": t});
+    let r = app.post_json(url, &body).await;
+    assert_eq!(r.status(), 200);
+    let a: Value = r.json().await.unwrap();
+    let d = a["alignment"]["delay_s"].as_f64().unwrap();
+    assert!((d - 0.37).abs() < 0.0005, "{}", a["alignment"]);
+    assert_eq!(a["verdict"], "backlash", "{}", a["effects"]);
+}
+on_both_backends!(motion_timed_log_refusals);

@@ -1,6 +1,8 @@
 //! Unit tests of `crate::gap::selfcheck`.
 
 use super::*;
+use crate::gap::motion::MotionBlock;
+use crate::motion::ServoAxis;
 use rand::SeedableRng;
 
 /// A small blind self-check (the big one is `truecut gap selfcheck`): 18 cases, two of each

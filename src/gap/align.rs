@@ -1,0 +1,223 @@
+//! Logs whose clock disagrees with the program's (issue 23 item 4): a real log starts before
+//! or after the program, samples at its own rate (1 kHz from a servo trace, 10–100 Hz from a
+//! data collector), with jitter and gaps. Given the log's own time stamps, this file finds the
+//! program time of every log sample from the motion itself — the delay (the log-clock time of
+//! the program's start) and, when there is one, the rate ratio of the two clocks — and puts
+//! the log on the simulation's time grid for the diagnosis: each grid instant within half a
+//! period of a log sample takes the log interpolated there, every other instant is left out of
+//! the fit (weight 0) rather than filled in.
+//!
+//! Written here (no crate): the matching is a least-squares fit of two clock parameters to
+//! the stored simulation, read at arbitrary times by linear interpolation — a brute-force
+//! coarse scan (positions are absolute, so the scan needs no correlation trick) and a few
+//! Gauss–Newton steps.
+
+mod clock;
+mod grid;
+
+pub use clock::{Clock, estimate_clock};
+pub use grid::{fill_unobserved, masked_stats, observed_only};
+
+use serde::Serialize;
+
+use crate::gap::Error;
+use crate::gap::motion::MotionBlock;
+use crate::gap::plant::AxisPlant;
+
+/// Fewest time-stamped samples a log needs before it is aligned at all.
+pub const MIN_LOG_SAMPLES: usize = 20;
+/// Fewest grid instants the aligned log must observe inside the program's window.
+pub const MIN_OBSERVED: usize = 50;
+/// Seconds the command is held at its end after the program (the machine settles): the
+/// simulation the log is matched to, and the longest the diagnosis runs past the program.
+pub const HOLD_S: f64 = 2.0;
+/// A step between successive stamps longer than this many times the median step is a gap.
+pub const GAP_FACTOR: f64 = 3.0;
+/// Most grid instants an aligned log is diagnosed on (the route's synchronous limit).
+pub const MAX_GRID_SAMPLES: usize = 100_000;
+
+/// A stretch with no samples, in the log's clock (s): the stamps of the samples either side.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct LogGap {
+    /// Stamp of the last sample before the gap, s.
+    pub t_start: f64,
+    /// Stamp of the first sample after the gap, s.
+    pub t_end: f64,
+}
+
+/// How a time-stamped log was put on the program's grid (the answer's `alignment`).
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Alignment {
+    /// Log-clock time at which the program starts, s: program time τ of a stamp t is
+    /// `(t − delay_s) / rate_ratio`.
+    pub delay_s: f64,
+    /// Log seconds per program second (1 when no clock drift was found).
+    pub rate_ratio: f64,
+    /// Samples in the log.
+    pub samples: usize,
+    /// Log samples inside the diagnosed window (program start to the grid's end).
+    pub samples_used: usize,
+    /// Log samples before the program's start (used to align, not diagnosed).
+    pub samples_before: usize,
+    /// Log samples after the grid's end (the program's end plus [`HOLD_S`]).
+    pub samples_after: usize,
+    /// Stretches of the log without samples.
+    pub gaps: Vec<LogGap>,
+    /// Instants of the diagnosis grid (`period_s` apart from the program's start).
+    pub grid_samples: usize,
+    /// Grid instants that carry a log sample (the rest are left out of every fit).
+    pub grid_observed: usize,
+    /// RMS of |log − stored simulation| over the log's samples at this clock, mm.
+    pub residual_rms_mm: f64,
+}
+
+/// A log put on the program's grid: the block (command cut or held to the grid, measured
+/// interpolated at the observed instants and equal to the stored simulation elsewhere), the
+/// weight of each grid instant (1 observed, 0 not) and the alignment report.
+#[derive(Clone, Debug)]
+pub struct Aligned {
+    /// Command and measured positions per axis on the grid, mm.
+    pub block: MotionBlock,
+    /// 1 where a log sample lies within half a period of the instant, else 0.
+    pub observed: Vec<f64>,
+    /// What was found.
+    pub alignment: Alignment,
+}
+
+/// Checks a log's time stamps at the door: as many as `rows`, finite, strictly increasing.
+/// Errors name `field` and the index.
+pub fn check_times(field: &str, t: &[f64], rows: usize) -> Result<(), Error> {
+    if t.len() != rows {
+        return Err(Error::shape(
+            field,
+            format!(
+                "has {} time stamps but measured has {rows} rows: one stamp (s) per row",
+                t.len()
+            ),
+        ));
+    }
+    if let Some(index) = t.iter().position(|v| !v.is_finite()) {
+        return Err(Error::NonFinite {
+            field: field.to_string(),
+            index,
+        });
+    }
+    if let Some(i) = (1..t.len()).find(|&i| t[i] <= t[i - 1]) {
+        return Err(Error::shape(
+            &format!("{field}[{i}]"),
+            format!(
+                "{} s is not after {field}[{}] = {} s: time stamps must strictly increase",
+                t[i],
+                i - 1,
+                t[i - 1]
+            ),
+        ));
+    }
+    Ok(())
+}
+
+/// Aligns a time-stamped log (`t` s, `log` per axis mm) to the stored simulation of
+/// `commanded` (per axis, mm, one row every `period_s` from the program's start) and puts it
+/// on the program's grid.
+///
+/// The simulation is the plants' linear response to the command held [`HOLD_S`] past its end;
+/// the clock comes from [`estimate_clock`]; the grid runs from the program's start to the
+/// log's last sample (at most the program's end plus [`HOLD_S`]). Gaps are steps between
+/// stamps longer than [`GAP_FACTOR`] times the median step; a grid instant is observed when a
+/// log sample lies within half a period of it, and takes the log linearly interpolated (or,
+/// next to a gap, extrapolated by at most half a period) from the samples on its side.
+/// Reference: the first-order hold of the HTTP contract's command.
+/// Known bad cases: see [`estimate_clock`] (a pure lag is read as delay); a log sample with a
+/// gap on both sides is left out.
+pub fn align_block(
+    plants: &[AxisPlant],
+    commanded: &[Vec<f64>],
+    t: &[f64],
+    log: &[Vec<f64>],
+    period_s: f64,
+) -> Result<Aligned, Error> {
+    let n_cmd = commanded.first().map_or(0, Vec::len);
+    if n_cmd < 2 {
+        return Err(Error::shape("commanded", "needs at least 2 rows"));
+    }
+    let hold = ((HOLD_S / period_s).ceil() as usize).max(1);
+    let extended: Vec<Vec<f64>> = commanded
+        .iter()
+        .map(|c| {
+            let mut e = c.clone();
+            e.resize(n_cmd + hold, c[n_cmd - 1]);
+            e
+        })
+        .collect();
+    let reference: Vec<Vec<f64>> = plants
+        .iter()
+        .zip(&extended)
+        .map(|(p, c)| p.linear(c))
+        .collect();
+    let clock = estimate_clock(&reference, period_s, t, log)?;
+    let tau: Vec<f64> = t.iter().map(|&s| clock.program_time(s)).collect();
+    let last_tau = *tau.last().expect("checked non-empty");
+    if last_tau < 0.0 {
+        return Err(Error::Align(format!(
+            "the log ends {:.3} s before the program starts (delay_s {:.4}): log while the program runs",
+            -last_tau, clock.delay_s
+        )));
+    }
+    let n_grid = ((last_tau / period_s + 0.5).floor() as usize + 1).min(n_cmd + hold);
+    if n_grid > MAX_GRID_SAMPLES {
+        return Err(Error::Align(format!(
+            "the log covers {n_grid} periods of {period_s} s from the program's start: at most \
+             {MAX_GRID_SAMPLES} are diagnosed at once; send a shorter log or a longer period_s"
+        )));
+    }
+    let gaps = grid::gaps(&tau);
+    let (measured, observed) = grid::resample(&reference, period_s, &tau, log, &gaps, n_grid);
+    let grid_observed = observed.iter().filter(|w| **w > 0.0).count();
+    if grid_observed < MIN_OBSERVED {
+        return Err(Error::Align(format!(
+            "only {grid_observed} instants of the program's grid carry a log sample (delay_s \
+             {:.4}): the log is too short or lies outside the program; at least {MIN_OBSERVED} \
+             are needed",
+            clock.delay_s
+        )));
+    }
+    let half = 0.5 * period_s;
+    let end = (n_grid - 1) as f64 * period_s + half;
+    let samples_before = tau.iter().filter(|&&s| s < -half).count();
+    let samples_after = tau.iter().filter(|&&s| s > end).count();
+    let alignment = Alignment {
+        delay_s: clock.delay_s,
+        rate_ratio: clock.rate_ratio,
+        samples: t.len(),
+        samples_used: t.len() - samples_before - samples_after,
+        samples_before,
+        samples_after,
+        gaps: gaps
+            .iter()
+            .enumerate()
+            .filter(|(_, g)| **g)
+            .map(|(j, _)| LogGap {
+                t_start: t[j],
+                t_end: t[j + 1],
+            })
+            .collect(),
+        grid_samples: n_grid,
+        grid_observed,
+        residual_rms_mm: clock.residual_rms_mm,
+    };
+    let commanded = extended.into_iter().map(|mut c| {
+        c.truncate(n_grid);
+        c
+    });
+    Ok(Aligned {
+        block: MotionBlock {
+            commanded: commanded.collect(),
+            measured,
+        },
+        observed,
+        alignment,
+    })
+}
+
+#[cfg(test)]
+mod tests;
