@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 use serde_json::{Value, json};
 
+use crate::gap::selfcheck::Generator;
 use crate::gap::{GapRequest, MotionOptions, diagnose_motion_request, selfcheck};
 use crate::motion::{ServoAxes, servo_axes, stored_definition};
 
@@ -24,15 +25,35 @@ pub struct Args {
 #[derive(Debug, clap::Subcommand)]
 pub enum GapCommand {
     /// Blind self-check: truth plants with each effect withheld (plus "none" and out-of-library
-    /// effects), diagnosed; prints the confusion matrix, accuracy, median validation shrink and
-    /// false-alarm rate.
+    /// effects), diagnosed; prints the confusion matrix and the figures (accuracy, `where` on
+    /// the literal and the loose reading, median validation shrink, out-of-library answers,
+    /// false alarms) with the seed set they come from.
     Selfcheck {
-        /// Number of cases (cycling none, the 7 effects, out of library).
-        #[arg(long, default_value_t = 90)]
+        /// Number of cases (cycling through the generator's kinds: 13 for `wide`, 14 with
+        /// `--clock-logs`, 9 for `classic`).
+        #[arg(long, default_value_t = 130)]
         cases: usize,
-        /// First seed (cases use seed, seed+1, ...).
-        #[arg(long, default_value_t = 1)]
-        seed: u64,
+        /// Seed set: `report` (seeds from 1,000,000: only ever used to report figures) or
+        /// `tune` (seeds from 1: where thresholds and span ranking are chosen).
+        #[arg(long, value_enum, default_value_t = SeedSet::Report)]
+        set: SeedSet,
+        /// First seed (cases use seed, seed+1, ...); overrides `--set`.
+        #[arg(long)]
+        seed: Option<u64>,
+        /// Truth generator: `wide` (issue 23: contact anywhere, warm validation blocks, cyclic
+        /// on any axis, pairs, extremes) or `classic` (the fitter's own ranges).
+        #[arg(long, value_enum, default_value_t = GeneratorArg::Wide)]
+        generator: GeneratorArg,
+        /// Also plant logs on their own clock (delay 2-30 ms, rate 0.5-4x, jitter), put on the
+        /// program's grid by the alignment of time-stamped logs (delay and rate estimated).
+        #[arg(long)]
+        clock_logs: bool,
+        /// Override `MotionOptions::min_score` (for tuning on the tuning set).
+        #[arg(long)]
+        min_score: Option<f64>,
+        /// Override `MotionOptions::min_improvement_noise` (for tuning on the tuning set).
+        #[arg(long)]
+        min_improvement_noise: Option<f64>,
         /// Worker threads.
         #[arg(long, default_value_t = 2)]
         threads: usize,
@@ -79,38 +100,86 @@ pub enum GapCommand {
     },
 }
 
+/// Seed sets of the self-check.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum SeedSet {
+    /// Seeds from `selfcheck::TUNE_SEEDS`.
+    Tune,
+    /// Seeds from `selfcheck::REPORT_SEEDS`.
+    Report,
+}
+
+/// Truth generators of the self-check.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum GeneratorArg {
+    /// Widened truths (issue 23).
+    Wide,
+    /// The classic truths.
+    Classic,
+}
+
 /// Runs `truecut gap ...`.
 pub fn run(args: Args) -> anyhow::Result<()> {
     match args.command {
         GapCommand::Selfcheck {
             cases,
+            set,
             seed,
+            generator,
+            clock_logs,
+            min_score,
+            min_improvement_noise,
             threads,
             verbose,
             part_cases,
         } => {
+            let defaults = MotionOptions::default();
             let opts = MotionOptions {
                 threads: threads.max(1),
-                ..MotionOptions::default()
+                min_score: min_score.unwrap_or(defaults.min_score),
+                min_improvement_noise: min_improvement_noise
+                    .unwrap_or(defaults.min_improvement_noise),
+                ..defaults
+            };
+            let seed = seed.unwrap_or(match set {
+                SeedSet::Tune => selfcheck::TUNE_SEEDS,
+                SeedSet::Report => selfcheck::REPORT_SEEDS,
+            });
+            let generator = match (generator, clock_logs) {
+                (GeneratorArg::Classic, false) => Generator::Classic,
+                (GeneratorArg::Classic, true) => {
+                    bail!("--clock-logs needs --generator wide")
+                }
+                (GeneratorArg::Wide, false) => Generator::Wide,
+                (GeneratorArg::Wide, true) => Generator::WideWithClocks,
             };
             let started = std::time::Instant::now();
-            let report = selfcheck::run(cases, seed, &opts)?;
+            let report = selfcheck::run_with(generator, cases, seed, &opts)?;
             if verbose {
                 for c in &report.cases {
                     println!(
-                        "{:<20} -> {:<20} shrink {:>6.1} %  {:?}, noise {:.2} µm  where {} {}",
+                        "{:<15} {:<20} -> {:<20} {:<5} shrink {:>6.1} %  {:?}, noise {:.2} µm  \
+                         where {} {}  steps {:?}  {}",
+                        c.category.name(),
                         c.truth,
                         c.verdict.name(),
+                        match c.right {
+                            None => "-",
+                            Some(true) => "ok",
+                            Some(false) => "MISS",
+                        },
                         100.0 * c.shrink,
                         c.program,
                         c.sigma * 1e3,
-                        match (c.where_ok, c.where_strict) {
+                        match (c.where_ok, c.where_literal) {
                             (None, _) => "-",
                             (Some(true), Some(true)) => "ok",
-                            (Some(true), _) => "ok (not on a reversal sample)",
+                            (Some(true), _) => "ok loose only",
                             (Some(false), _) => "MISS",
                         },
-                        c.where_top
+                        c.where_top,
+                        c.steps.iter().map(|e| e.name()).collect::<Vec<_>>(),
+                        c.detail
                     );
                 }
             }

@@ -16,9 +16,14 @@ pub mod plant;
 pub mod programs;
 pub mod request;
 pub mod selfcheck;
+pub mod selfcheck_cases;
+pub mod selfcheck_report;
+pub mod selfcheck_where;
 pub mod steps;
 pub mod truth;
+pub mod truth_clock;
 pub mod truth_outside;
+pub mod truth_wide;
 pub mod unexplained;
 pub mod usual;
 

@@ -1,6 +1,8 @@
 //! Truth plants for the self-check, written independently of the diagnosis' plant: RK4 on the
 //! equations of openapi.yaml schema `Servo` in absolute coordinates, smooth (tanh) Coulomb
 //! friction, and each effect drawn at realistic magnitudes — including effects outside the library.
+//! The widened draws (contact state anywhere, warm blocks, pairs, extremes, other clocks) are in
+//! [`crate::gap::truth_wide`] and [`crate::gap::truth_clock`].
 
 use rand::{Rng, RngExt};
 
@@ -30,6 +32,12 @@ pub enum Truth {
     VelocityLoopGain(usize, f64),
     /// Out of library: straightness, `pos[1] += c·(pos[0] − x0)²`.
     Straightness(f64, f64),
+    /// Play of width `b` (mm) per axis, the table starting `s·b/2` from the motor (`s` in
+    /// −1..=1 per axis, in machine direction: +1 = the table ahead of the motor towards +).
+    BacklashAt(Vec<f64>, Vec<f64>),
+    /// Two effects at once: the dynamic parts (friction, gains) act in the loop together, then
+    /// the play, then the geometric and thermal parts in turn.
+    Pair(Box<Truth>, Box<Truth>),
     /// Out of library: the plants of [`crate::gap::truth_outside`].
     Outside(crate::gap::truth_outside::Outside),
 }
@@ -40,16 +48,41 @@ impl Truth {
         Some(match self {
             Truth::None => Effect::None,
             Truth::Friction(_) => Effect::CoulombFriction,
-            Truth::Backlash(..) => Effect::Backlash,
+            Truth::Backlash(..) | Truth::BacklashAt(..) => Effect::Backlash,
             Truth::Mismatch(_) => Effect::ServoGainMismatch,
             Truth::Squareness(..) => Effect::AxisSquareness,
             Truth::Scale(_) => Effect::ScaleError,
             Truth::Cyclic(..) => Effect::CyclicError,
             Truth::Thermal(..) => Effect::ThermalDrift,
-            Truth::VelocityLoopGain(..) | Truth::Straightness(..) | Truth::Outside(_) => {
+            Truth::VelocityLoopGain(..)
+            | Truth::Straightness(..)
+            | Truth::Pair(..)
+            | Truth::Outside(_) => {
                 return None;
             }
         })
+    }
+
+    /// The plants this truth is made of: itself, or a pair's two parts (flattened).
+    pub fn parts(&self) -> Vec<&Truth> {
+        match self {
+            Truth::Pair(a, b) => {
+                let mut out = a.parts();
+                out.extend(b.parts());
+                out
+            }
+            other => vec![other],
+        }
+    }
+
+    /// The library effects of this truth: one, a pair's two, or none (out of library and
+    /// `Truth::None`).
+    pub fn effects(&self) -> Vec<Effect> {
+        self.parts()
+            .iter()
+            .filter_map(|p| p.effect())
+            .filter(|e| *e != Effect::None)
+            .collect()
     }
 }
 
@@ -152,7 +185,8 @@ fn rk4_axis(servo: &ServoAxis, cmd: &[f64], period: f64, friction: f64) -> Vec<f
     crate::motion::rk4::rk4_first_order_hold(cmd, period, sub, deriv)
 }
 
-/// Measured positions (per axis, mm) of the truth plant for `cmd`, plus Gaussian noise `sigma`.
+/// Measured positions (per axis, mm) of the truth plant for `cmd`, plus Gaussian noise `sigma`,
+/// the block starting when the truth starts (`t0 = 0`, see [`measure_at`]).
 pub fn measure(
     servo: &[ServoAxis],
     truth: &Truth,
@@ -161,35 +195,70 @@ pub fn measure(
     sigma: f64,
     rng: &mut impl Rng,
 ) -> Vec<Vec<f64>> {
+    measure_at(servo, truth, cmd, period, 0.0, sigma, rng)
+}
+
+/// Measured positions (per axis, mm) of the truth plant for `cmd` sampled every `period` s,
+/// the block's first sample `t0_s` seconds after the truth started (a warm machine: the thermal
+/// drift is `D·(1 − e^{−(t0 + t)/τ})`), plus Gaussian noise `sigma` (mm).
+///
+/// Formula: RK4 of the cascade with the loop parts (friction, gains) of every part, then the
+/// play operator, then the kinematic parts in the order given.
+/// Reference: openapi.yaml schema `Servo` (the equations); the play operator of
+/// Krasnosel'skii & Pokrovskii, *Systems with Hysteresis* (1989), motor in, table out.
+/// Known bad cases: two plays in one pair would act one after the other (a play of a play);
+/// the draws never pair an effect with itself.
+pub fn measure_at(
+    servo: &[ServoAxis],
+    truth: &Truth,
+    cmd: &[Vec<f64>],
+    period: f64,
+    t0_s: f64,
+    sigma: f64,
+    rng: &mut impl Rng,
+) -> Vec<Vec<f64>> {
     if let Truth::Outside(o) = truth {
         return crate::gap::truth_outside::measure(servo, o, cmd, period, sigma, rng);
     }
+    let parts = truth.parts();
     let mut pos: Vec<Vec<f64>> = servo
         .iter()
         .enumerate()
-        .map(|(k, s)| match truth {
-            Truth::Friction(f) => rk4_axis(s, &cmd[k], period, f[k]),
-            Truth::Mismatch(kv) => rk4_axis(
-                &ServoAxis {
-                    kv: kv[k],
-                    ..s.clone()
-                },
-                &cmd[k],
-                period,
-                0.0,
-            ),
-            Truth::VelocityLoopGain(j, factor) if *j == k => rk4_axis(
-                &ServoAxis {
-                    kp_v: s.kp_v.map(|kp| kp * factor),
-                    ..s.clone()
-                },
-                &cmd[k],
-                period,
-                0.0,
-            ),
-            _ => rk4_axis(s, &cmd[k], period, 0.0),
+        .map(|(k, s)| {
+            let mut axis = s.clone();
+            let mut friction = 0.0;
+            for p in &parts {
+                match p {
+                    Truth::Friction(f) => friction = f[k],
+                    Truth::Mismatch(kv) => axis.kv = kv[k],
+                    Truth::VelocityLoopGain(j, factor) if *j == k => {
+                        axis.kp_v = s.kp_v.map(|kp| kp * factor);
+                    }
+                    _ => {}
+                }
+            }
+            rk4_axis(&axis, &cmd[k], period, friction)
         })
         .collect();
+    // the play acts between motor and table, before any geometric error of the table
+    let (plays, rest): (Vec<&Truth>, Vec<&Truth>) = parts
+        .iter()
+        .partition(|p| matches!(p, Truth::Backlash(..) | Truth::BacklashAt(..)));
+    for p in plays.iter().chain(&rest) {
+        apply_kinematic(p, &mut pos, cmd, period, t0_s);
+    }
+    let normal = rand_distr::Normal::new(0.0, sigma.max(1e-12)).expect("valid sigma");
+    for col in pos.iter_mut() {
+        for x in col.iter_mut() {
+            *x += rng.sample(normal);
+        }
+    }
+    pos
+}
+
+/// Adds one part's kinematic effect (play, squareness, scale, cyclic, thermal, straightness)
+/// to the simulated positions `pos` (per axis, mm); loop parts are already in `pos`.
+fn apply_kinematic(truth: &Truth, pos: &mut [Vec<f64>], cmd: &[Vec<f64>], period: f64, t0: f64) {
     let n = cmd[0].len();
     match truth {
         Truth::Backlash(b, centred) => {
@@ -200,19 +269,19 @@ pub fn measure(
                     .iter()
                     .find(|&&c| (c - cmd[k][0]).abs() > 1e-9)
                     .map_or(1.0, |c| (c - cmd[k][0]).signum());
-                let mut table = if *centred {
+                let table = if *centred {
                     col[0]
                 } else {
                     col[0] - first_dir * half
                 };
-                for x in col.iter_mut() {
-                    if *x - table > half {
-                        table = *x - half;
-                    } else if table - *x > half {
-                        table = *x + half;
-                    }
-                    *x = table;
-                }
+                play_in_place(col, half, table);
+            }
+        }
+        Truth::BacklashAt(b, start) => {
+            for (k, col) in pos.iter_mut().enumerate() {
+                let half = b[k] / 2.0;
+                let table = col[0] + start[k].clamp(-1.0, 1.0) * half;
+                play_in_place(col, half, table);
             }
         }
         Truth::Squareness(t, s, alpha) => {
@@ -233,9 +302,9 @@ pub fn measure(
         }
         Truth::Thermal(dr, tau) => {
             for (k, col) in pos.iter_mut().enumerate() {
-                col.iter_mut()
-                    .enumerate()
-                    .for_each(|(i, x)| *x += dr[k] * (1.0 - (-(i as f64) * period / tau).exp()));
+                col.iter_mut().enumerate().for_each(|(i, x)| {
+                    *x += dr[k] * (1.0 - (-(t0 + i as f64 * period) / tau).exp())
+                });
             }
         }
         Truth::Straightness(c, _) => {
@@ -247,11 +316,17 @@ pub fn measure(
         }
         _ => {}
     }
-    let normal = rand_distr::Normal::new(0.0, sigma.max(1e-12)).expect("valid sigma");
-    for col in pos.iter_mut() {
-        for x in col.iter_mut() {
-            *x += rng.sample(normal);
+}
+
+/// The play operator in place: the table (starting at `table`) follows the motor positions
+/// `col` only when they are more than `half` (mm) away.
+fn play_in_place(col: &mut [f64], half: f64, mut table: f64) {
+    for x in col.iter_mut() {
+        if *x - table > half {
+            table = *x - half;
+        } else if table - *x > half {
+            table = *x + half;
         }
+        *x = table;
     }
-    pos
 }
