@@ -432,9 +432,7 @@ impl From<metrology::Error> for ApiError {
             E::TooFew { .. }
             | E::Degenerate { .. }
             | E::MissingReadings { .. }
-            | E::Unresolvable { .. } => {
-                ApiError::unprocessable(e.to_string())
-            }
+            | E::Unresolvable { .. } => ApiError::unprocessable(e.to_string()),
         }
     }
 }

@@ -633,7 +633,12 @@ async fn motion_timed_log_gives_the_aligned_answer(app: TestApp) {
     // 0.94 (the delay estimate, fitted before the effect is known, absorbs ~21 µs of the
     // backlash's lag, which costs a few µm on the rapid). Until the delay is refitted with the
     // named effect, this guards the figure reached, not the goal.
-    assert!(shrink(&b) > 0.6 && shrink(&a) > 0.9, "{} {}", shrink(&a), shrink(&b));
+    assert!(
+        shrink(&b) > 0.6 && shrink(&a) > 0.9,
+        "{} {}",
+        shrink(&a),
+        shrink(&b)
+    );
     let delay_s = al["delay_s"].as_f64().unwrap();
     assert!((delay_s - delay).abs() < 0.0005, "{al}");
     assert_eq!(al["rate_ratio"], 1.0, "{al}");
