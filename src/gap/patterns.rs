@@ -177,10 +177,10 @@ fn best_jump(r: &[f64]) -> Option<(usize, f64, f64)> {
 /// leftover holds at least a tenth of the total, every shape of [`PatternKind`] against every
 /// axis' motion, those removing at least [`MIN_EXPLAINED`] of the axis' leftover variance on
 /// held-out folds, best first, at most [`MAX_PATTERNS`]. Periods come from the sinusoid search
-/// of [`best_period`]; the shape at that period is a 16-bin table (a sawtooth or a spike train
+/// of `best_period`; the shape at that period is a 16-bin table (a sawtooth or a spike train
 /// is found as well as a sinusoid).
 ///
-/// Formula: see [`score`]. Reference: blocked cross-validation (Roberts et al. 2017, "Cross-
+/// Formula: see `score`. Reference: blocked cross-validation (Roberts et al. 2017, "Cross-
 /// validation strategies for data with temporal, spatial, hierarchical, or phylogenetic
 /// structure", Ecography 40). Known bad cases: on a single pass, time, position and speed are
 /// one and the same coordinate and the held-out folds cannot tell them apart (nothing is

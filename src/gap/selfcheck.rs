@@ -32,7 +32,7 @@ pub enum Generator {
     /// The widened draws of issue 23 (cycle of [`WIDE_KINDS`] kinds).
     Wide,
     /// The widened draws plus logs on their own clock (cycle of `WIDE_KINDS + 1`), put on the
-    /// program's grid by [`align_block`] (delay and rate estimated from the motion).
+    /// program's grid by `align_block` (delay and rate estimated from the motion).
     WideWithClocks,
 }
 

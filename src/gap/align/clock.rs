@@ -231,11 +231,11 @@ impl Fit<'_> {
 /// together (Nocedal & Wright 2006 §10.3). The drift is kept when the delays refitted on
 /// stretches of the log move steadily with time (a slope 4 standard errors from 0: an effect
 /// of the machine moves them back and forth, a clock steadily), when it removes at least
-/// [`MIN_RATE_GAIN`] of the squared misfit and stays within 1 ± [`MAX_RATE_DEVIATION`].
+/// `MIN_RATE_GAIN` of the squared misfit and stays within 1 ± `MAX_RATE_DEVIATION`.
 /// Reference: Nocedal & Wright, Numerical Optimization (2006), §10.3 (Gauss–Newton).
 /// Errors ([`Error::Align`], a sentence): fewer than `MIN_LOG_SAMPLES` samples; a log that does
 /// not move; a second, separate delay that fits nearly as well (the motion repeats); a misfit
-/// above [`MAX_MISFIT`] of the log's motion (a log of another program).
+/// above `MAX_MISFIT` of the log's motion (a log of another program).
 /// Known bad cases: a lag that grows with speed alike on every axis (a position-loop gain below
 /// the stored one, seen only at constant feed) looks like a later start and is partly taken
 /// into `delay_s`; on a single constant-speed move a scale error looks like clock drift.

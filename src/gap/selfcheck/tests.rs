@@ -196,7 +196,11 @@ fn two_effects_and_an_unlisted_ripple() {
     assert!((ps - 2.0).abs() <= 0.2, "{ps}");
     // Issue 23 item 2: the 18 µm ripple is outside the library and leaves most of the held-out
     // gap (0.61 in our run) after both steps, so the verdict is `unexplained`, not the first step.
-    assert!(d.unexplained.heldout_share > 0.5, "{}", d.unexplained.heldout_share);
+    assert!(
+        d.unexplained.heldout_share > 0.5,
+        "{}",
+        d.unexplained.heldout_share
+    );
     assert_eq!(d.verdict, Effect::Unexplained);
     assert_eq!(v.predicted_steps.len(), d.steps.len());
 }

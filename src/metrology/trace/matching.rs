@@ -60,7 +60,7 @@ const OFFSET_REACH: usize = 128;
 /// that brings the most stops within `tol` of a commanded position (ties: the smallest shift).
 ///
 /// Formula: o* = argmax_o #{k : min_p |y_k − o − p| ≤ tol}, o over y_k − p for the first
-/// [`OFFSET_SEEDS`] stops k and every position p (the [`OFFSET_REACH`] nearest on each side
+/// `OFFSET_SEEDS` stops k and every position p (the `OFFSET_REACH` nearest on each side
 /// when there are more).
 ///
 /// Known bad cases: evenly spaced targets and an offset of a whole spacing differ only at the

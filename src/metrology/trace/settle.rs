@@ -36,7 +36,7 @@ pub fn half_window(period_s: f64, min_settled_s: f64, n: usize) -> usize {
 /// The settled stretches of a measured position series, in time order.
 ///
 /// A sample k is settled when the speed over the window `[k − h, k + h]` (h from
-/// [`half_window`], so the window lasts about `min_settled_s`) is at most `speed_mm_s`; a
+/// `half_window`, so the window lasts about `min_settled_s`) is at most `speed_mm_s`; a
 /// stretch is a maximal run of settled samples, less its first h samples (at most half of it):
 /// every sample averaged has had the axis judged still over a whole window before it, and
 /// half a window after it (so the departure is left out too).

@@ -83,8 +83,8 @@ thread_local! {
 }
 
 /// Runs `f` with every VMD iteration it starts on the calling thread on `threads` threads (1:
-/// never split; 2: split from [`PARALLEL_MIN_BINS`] bins whatever else runs) instead of the
-/// load-dependent choice of [`admm`]. The answer is the same bits either way; this is for
+/// never split; 2: split from `PARALLEL_MIN_BINS` bins whatever else runs) instead of the
+/// load-dependent choice of `admm`. The answer is the same bits either way; this is for
 /// the tests that check so and for benchmarks that time both paths. Work `f` hands to other
 /// threads (coarse-to-fine's EMD and refinement) runs no VMD, so is unaffected.
 pub fn with_threads<R>(threads: usize, f: impl FnOnce() -> R) -> R {
