@@ -8,7 +8,7 @@ use std::collections::BTreeMap;
 use serde::Deserialize;
 use serde_json::Value;
 
-use super::align::{Alignment, align_block, check_times};
+use super::align::{Alignment, TimedLog, check_times, refine_delay, step_effects};
 use super::answer::motion_answer;
 use super::error::Error;
 use super::motion::{MotionBlock, MotionOptions, diagnose_motion_structured};
@@ -146,32 +146,53 @@ pub fn diagnose_motion_request(axes: &ServoAxes, req: &GapRequest) -> Result<Val
 
 /// As [`diagnose_motion_request`], with the command taken from `program` (the interpolation of
 /// the request's `gcode`, made by the caller) instead of `commanded`: `where` then names the
-/// program lines and the answer carries the reader's `warnings`.
+/// program lines and the answer carries the reader's `warnings`. A time-stamped log
+/// (`measured_t`) is diagnosed twice when the first diagnosis takes a step: its delay is
+/// chosen again with the steps' effects refitted at every delay tried ([`refine_delay`]),
+/// and the answer is the diagnosis at that delay.
 pub fn diagnose_motion_program(
     axes: &ServoAxes,
     req: &GapRequest,
     program: Option<&ProgramCommand>,
 ) -> Result<Value, Error> {
-    let ((main, validation, period_s, opts), alignment) =
-        motion_inputs_aligned(axes, req, program)?;
+    let ((mut main, validation, period_s, mut opts), timed) =
+        motion_inputs_timed(axes, req, program)?;
     let dims = main.commanded.len();
-    // a timed log's grid is the program's cut or held to the log: so are its lines
-    let lines: Option<Vec<u32>> = program.map(|p| {
-        let mut lines = p.lines.clone();
-        let last = lines.last().copied().unwrap_or(1);
-        lines.resize(main.commanded[0].len(), last);
-        lines
-    });
-    let d = diagnose_motion_structured(
-        &axes.names[..dims],
-        &axes.servo[..dims],
-        &axes.structure[..dims],
-        period_s,
-        &main,
-        validation.as_ref(),
-        lines.as_deref(),
-        &opts,
-    )?;
+    let run = |main: &MotionBlock, opts: &MotionOptions| {
+        // a timed log's grid is the program's cut or held to the log: so are its lines
+        let lines: Option<Vec<u32>> = program.map(|p| {
+            let mut lines = p.lines.clone();
+            let last = lines.last().copied().unwrap_or(1);
+            lines.resize(main.commanded[0].len(), last);
+            lines
+        });
+        diagnose_motion_structured(
+            &axes.names[..dims],
+            &axes.servo[..dims],
+            &axes.structure[..dims],
+            period_s,
+            main,
+            validation.as_ref(),
+            lines.as_deref(),
+            opts,
+        )
+    };
+    let mut d = run(&main, &opts)?;
+    let mut alignment = None;
+    if let Some((timed, first)) = timed {
+        // the first delay matched the stored simulation alone: choose it again with the
+        // effects the diagnosis named, and diagnose the log at that delay
+        let effects = step_effects(&d);
+        alignment = Some(if effects.is_empty() {
+            first
+        } else {
+            let a = refine_delay(&timed, &first, &effects)?;
+            main = a.block;
+            opts.observed = Some(a.observed);
+            d = run(&main, &opts)?;
+            a.alignment
+        });
+    }
     let mut answer = motion_answer(&axes.names[..dims], &d);
     if let Some(a) = alignment {
         answer["alignment"] = serde_json::json!(a);
@@ -205,13 +226,23 @@ pub fn motion_inputs_with(
 }
 
 /// As [`motion_inputs_with`]; with `measured_t`, the log is aligned to the stored simulation of
-/// the command and put on the program's grid ([`align_block`]): the block is that grid's, the
+/// the command and put on the program's grid ([`TimedLog`]): the block is that grid's, the
 /// options carry the observed instants, and the alignment is returned beside.
 pub fn motion_inputs_aligned(
     axes: &ServoAxes,
     req: &GapRequest,
     program: Option<&ProgramCommand>,
 ) -> Result<(MotionInputs, Option<Alignment>), Error> {
+    motion_inputs_timed(axes, req, program).map(|(inputs, timed)| (inputs, timed.map(|(_, a)| a)))
+}
+
+/// As [`motion_inputs_aligned`], returning the time-stamped log itself beside its first
+/// alignment, for [`refine_delay`].
+pub fn motion_inputs_timed(
+    axes: &ServoAxes,
+    req: &GapRequest,
+    program: Option<&ProgramCommand>,
+) -> Result<(MotionInputs, Option<(TimedLog, Alignment)>), Error> {
     if req.gcode.is_some() && req.commanded.is_some() {
         return Err(Error::Request(
             "send either commanded (rows) or gcode (a program), not both".into(),
@@ -325,7 +356,7 @@ pub fn motion_inputs_aligned(
     // small blocks: one thread per request (the pool runs requests side by side); large
     // blocks: the effect fits on 2 threads (benches/gap.rs: about 16 s for 100,000 samples x 3
     // axes with steps on this 2-core machine)
-    let (main, observed, alignment) = match &req.measured_t {
+    let (main, observed, timed) = match &req.measured_t {
         None => (
             MotionBlock {
                 commanded,
@@ -341,8 +372,9 @@ pub fn motion_inputs_aligned(
                         .map(|p| p.with_structure(axes.structure.get(k).copied().flatten()))
                 })
                 .collect::<Result<_, _>>()?;
-            let a = align_block(&plants, &commanded, t, &measured, period_s)?;
-            (a.block, Some(a.observed), Some(a.alignment))
+            let timed = TimedLog::new(plants, &commanded, t.clone(), measured, period_s)?;
+            let a = timed.place(&timed.estimate()?)?;
+            (a.block, Some(a.observed), Some((timed, a.alignment)))
         }
     };
     let threads = if main.commanded[0].len() >= 20_000 {
@@ -356,5 +388,5 @@ pub fn motion_inputs_aligned(
         observed,
         ..MotionOptions::default()
     };
-    Ok(((main, validation, period_s, opts), alignment))
+    Ok(((main, validation, period_s, opts), timed))
 }

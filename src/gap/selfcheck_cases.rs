@@ -4,14 +4,14 @@
 
 use rand::{RngExt, SeedableRng};
 
-use crate::gap::Error;
-use crate::gap::align::align_block;
+use crate::gap::align::{Aligned, Alignment, TimedLog, refine_delay};
 use crate::gap::motion::{MotionBlock, MotionOptions};
 use crate::gap::plant::AxisPlant;
 use crate::gap::programs::{Program, generate};
 use crate::gap::truth::{Truth, draw, measure, measure_at};
 use crate::gap::truth_clock::{ClockLog, ClockSpec, draw_clock, naive_on_command_clock, resample};
 use crate::gap::truth_wide::{Category, draw_wide};
+use crate::gap::{Effect, Error};
 use crate::motion::ServoAxis;
 
 /// A case ready to diagnose.
@@ -166,13 +166,25 @@ pub(crate) fn build_wide(kind: usize, seed: u64) -> Built {
     }
 }
 
-/// Puts a clock-log case's logs on the program's grid ([`align_block`]: delay and rate found
-/// from the motion) and weights the main block's unobserved instants 0; other cases pass.
-/// When a log cannot be aligned the case keeps its naive reading (said in its note).
-pub(crate) fn align_logs(mut b: Built, opts: &MotionOptions) -> (Built, MotionOptions, String) {
+/// A clock-log case's logs beside their first alignments (to the stored simulation), kept for
+/// [`refine_logs`]; `true_delay_s` is the main log's drawn delay (for the note).
+pub(crate) struct TimedCase {
+    main: (TimedLog, Alignment),
+    val: (TimedLog, Alignment),
+    true_delay_s: f64,
+}
+
+/// Puts a clock-log case's logs on the program's grid (delay and rate found from the motion
+/// against the stored simulation, [`TimedLog::estimate`]) and weights the main block's
+/// unobserved instants 0; other cases pass. When a log cannot be aligned the case keeps its
+/// naive reading (said in its note).
+pub(crate) fn align_logs(
+    mut b: Built,
+    opts: &MotionOptions,
+) -> (Built, MotionOptions, String, Option<TimedCase>) {
     let mut opts = opts.clone();
     let Some((main_log, val_log)) = b.logs.take() else {
-        return (b, opts, String::new());
+        return (b, opts, String::new(), None);
     };
     let names = ["X", "Y", "Z"];
     let plants: Result<Vec<AxisPlant>, Error> = b
@@ -181,34 +193,60 @@ pub(crate) fn align_logs(mut b: Built, opts: &MotionOptions) -> (Built, MotionOp
         .enumerate()
         .map(|(k, s)| AxisPlant::new(names[k], s, b.period))
         .collect();
+    let true_delay_s = main_log.spec.delay_s;
     let aligned = plants.and_then(|p| {
-        let m = align_block(
-            &p,
-            &b.main.commanded,
-            &main_log.t,
-            &main_log.measured,
-            b.period,
-        )?;
-        let v = align_block(
-            &p,
-            &b.val.commanded,
-            &val_log.t,
-            &val_log.measured,
-            b.period,
-        )?;
-        Ok((m, v))
+        let timed = |cmd: &[Vec<f64>], log: ClockLog| -> Result<(TimedLog, Aligned), Error> {
+            let timed = TimedLog::new(p.clone(), cmd, log.t, log.measured, b.period)?;
+            let a = timed.place(&timed.estimate()?)?;
+            Ok((timed, a))
+        };
+        Ok((
+            timed(&b.main.commanded, main_log)?,
+            timed(&b.val.commanded, val_log)?,
+        ))
     });
     match aligned {
-        Ok((m, v)) => {
+        Ok(((mt, m), (vt, v))) => {
             let note = format!(
-                "aligned: delay {:.4} s (true {:.4}), rate {:.6}",
-                m.alignment.delay_s, main_log.spec.delay_s, m.alignment.rate_ratio
+                "aligned: delay {:.6} s (true {true_delay_s:.6}), rate {:.6}",
+                m.alignment.delay_s, m.alignment.rate_ratio
             );
             b.main = m.block;
             b.val = v.block;
             opts.observed = Some(m.observed);
-            (b, opts, note)
+            let timed = TimedCase {
+                main: (mt, m.alignment),
+                val: (vt, v.alignment),
+                true_delay_s,
+            };
+            (b, opts, note, Some(timed))
         }
-        Err(e) => (b, opts, format!("alignment failed ({e}): naive reading")),
+        Err(e) => (
+            b,
+            opts,
+            format!("alignment failed ({e}): naive reading"),
+            None,
+        ),
     }
+}
+
+/// Refines both logs' delays with `effects` ([`refine_delay`]: the effects refitted to each
+/// log at every delay tried, the same procedure for the validation log as for the main one)
+/// and puts them on the grid again; returns the note.
+pub(crate) fn refine_logs(
+    b: &mut Built,
+    opts: &mut MotionOptions,
+    timed: &TimedCase,
+    effects: &[Effect],
+) -> Result<String, Error> {
+    let m = refine_delay(&timed.main.0, &timed.main.1, effects)?;
+    let v = refine_delay(&timed.val.0, &timed.val.1, effects)?;
+    let note = format!(
+        "; refined with {:?}: delay {:.6} s (true {:.6})",
+        m.alignment.refined_with, m.alignment.delay_s, timed.true_delay_s
+    );
+    b.main = m.block;
+    b.val = v.block;
+    opts.observed = Some(m.observed);
+    Ok(note)
 }

@@ -89,7 +89,7 @@ pub fn resample(
 
 /// The simulation `sim` (one value every `period_s` from 0) at time `tau`, linear between
 /// instants and held outside.
-fn read(sim: &[f64], period_s: f64, tau: f64) -> f64 {
+pub(super) fn read(sim: &[f64], period_s: f64, tau: f64) -> f64 {
     let x = (tau / period_s).max(0.0);
     let last = sim.len() - 1;
     if x >= last as f64 {

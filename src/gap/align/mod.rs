@@ -14,9 +14,11 @@
 
 mod clock;
 mod grid;
+mod refine;
 
 pub use clock::{Clock, estimate_clock};
 pub use grid::{fill_unobserved, masked_stats, observed_only};
+pub use refine::{refine_delay, step_effects};
 
 use serde::Serialize;
 
@@ -69,6 +71,15 @@ pub struct Alignment {
     pub grid_observed: usize,
     /// RMS of |log − stored simulation| over the log's samples at this clock, mm.
     pub residual_rms_mm: f64,
+    /// The delay that matches the log to the stored simulation alone, s (log clock): the
+    /// first estimate, equal to `delay_s` unless the delay was refined with effects.
+    pub delay_stored_s: f64,
+    /// Effects (openapi.yaml names) refitted at every delay tried when the delay was refined
+    /// ([`refine_delay`]); empty: the delay matches the stored simulation alone.
+    pub refined_with: Vec<String>,
+    /// RMS of |log − simulation with `refined_with` refitted| over the log's samples inside
+    /// the diagnosed window at `delay_s`, mm; `None` when not refined.
+    pub residual_effects_rms_mm: Option<f64>,
 }
 
 /// A log put on the program's grid: the block (command cut or held to the grid, measured
@@ -118,15 +129,9 @@ pub fn check_times(field: &str, t: &[f64], rows: usize) -> Result<(), Error> {
 
 /// Aligns a time-stamped log (`t` s, `log` per axis mm) to the stored simulation of
 /// `commanded` (per axis, mm, one row every `period_s` from the program's start) and puts it
-/// on the program's grid.
-///
-/// The simulation is the plants' linear response to the command held [`HOLD_S`] past its end;
-/// the clock comes from [`estimate_clock`]; the grid runs from the program's start to the
-/// log's last sample (at most the program's end plus [`HOLD_S`]). Gaps are steps between
-/// stamps longer than [`GAP_FACTOR`] times the median step; a grid instant is observed when a
-/// log sample lies within half a period of it, and takes the log linearly interpolated (or,
-/// next to a gap, extrapolated by at most half a period) from the samples on its side.
-/// Reference: the first-order hold of the HTTP contract's command.
+/// on the program's grid: [`TimedLog::new`], [`TimedLog::estimate`], [`TimedLog::place`].
+/// The clock is matched to the stored simulation only; [`refine_delay`] then moves the delay
+/// to where the diagnosed effects fit best.
 /// Known bad cases: see [`estimate_clock`] (a pure lag is read as delay); a log sample with a
 /// gap on both sides is left out.
 pub fn align_block(
@@ -136,87 +141,160 @@ pub fn align_block(
     log: &[Vec<f64>],
     period_s: f64,
 ) -> Result<Aligned, Error> {
-    let n_cmd = commanded.first().map_or(0, Vec::len);
-    if n_cmd < 2 {
-        return Err(Error::shape("commanded", "needs at least 2 rows"));
-    }
-    let hold = ((HOLD_S / period_s).ceil() as usize).max(1);
-    let extended: Vec<Vec<f64>> = commanded
-        .iter()
-        .map(|c| {
-            let mut e = c.clone();
-            e.resize(n_cmd + hold, c[n_cmd - 1]);
-            e
-        })
-        .collect();
-    let reference: Vec<Vec<f64>> = plants
-        .iter()
-        .zip(&extended)
-        .map(|(p, c)| p.linear(c))
-        .collect();
-    let clock = estimate_clock(&reference, period_s, t, log)?;
-    let tau: Vec<f64> = t.iter().map(|&s| clock.program_time(s)).collect();
-    let last_tau = *tau.last().expect("checked non-empty");
-    if last_tau < 0.0 {
-        return Err(Error::Align(format!(
-            "the log ends {:.3} s before the program starts (delay_s {:.4}): log while the program runs",
-            -last_tau, clock.delay_s
-        )));
-    }
-    let n_grid = ((last_tau / period_s + 0.5).floor() as usize + 1).min(n_cmd + hold);
-    if n_grid > MAX_GRID_SAMPLES {
-        return Err(Error::Align(format!(
-            "the log covers {n_grid} periods of {period_s} s from the program's start: at most \
-             {MAX_GRID_SAMPLES} are diagnosed at once; send a shorter log or a longer period_s"
-        )));
-    }
-    let gaps = grid::gaps(&tau);
-    let (measured, observed) = grid::resample(&reference, period_s, &tau, log, &gaps, n_grid);
-    let grid_observed = observed.iter().filter(|w| **w > 0.0).count();
-    if grid_observed < MIN_OBSERVED {
-        return Err(Error::Align(format!(
-            "only {grid_observed} instants of the program's grid carry a log sample (delay_s \
-             {:.4}): the log is too short or lies outside the program; at least {MIN_OBSERVED} \
-             are needed",
-            clock.delay_s
-        )));
-    }
-    let half = 0.5 * period_s;
-    let end = (n_grid - 1) as f64 * period_s + half;
-    let samples_before = tau.iter().filter(|&&s| s < -half).count();
-    let samples_after = tau.iter().filter(|&&s| s > end).count();
-    let alignment = Alignment {
-        delay_s: clock.delay_s,
-        rate_ratio: clock.rate_ratio,
-        samples: t.len(),
-        samples_used: t.len() - samples_before - samples_after,
-        samples_before,
-        samples_after,
-        gaps: gaps
+    let timed = TimedLog::new(
+        plants.to_vec(),
+        commanded,
+        t.to_vec(),
+        log.to_vec(),
+        period_s,
+    )?;
+    timed.place(&timed.estimate()?)
+}
+
+/// A time-stamped log beside the program it logs: the command held [`HOLD_S`] past its end,
+/// its stored simulation, the stamps and the positions — what every clock is tried against.
+#[derive(Clone, Debug)]
+pub struct TimedLog {
+    /// One plant per axis.
+    pub plants: Vec<AxisPlant>,
+    /// The command per axis, mm, held [`HOLD_S`] past its end.
+    pub extended: Vec<Vec<f64>>,
+    /// The stored simulation of `extended` per axis, mm.
+    pub reference: Vec<Vec<f64>>,
+    /// The log's stamps, s (log clock).
+    pub t: Vec<f64>,
+    /// The log's positions per axis, mm.
+    pub log: Vec<Vec<f64>>,
+    /// The program's sample period, s.
+    pub period_s: f64,
+}
+
+impl TimedLog {
+    /// The log (`t` s, `log` per axis mm) of `commanded` (per axis, mm, one row every
+    /// `period_s` from the program's start): simulates the command held [`HOLD_S`] past its end
+    /// through the plants' linear response. Errors: fewer than 2 command rows.
+    pub fn new(
+        plants: Vec<AxisPlant>,
+        commanded: &[Vec<f64>],
+        t: Vec<f64>,
+        log: Vec<Vec<f64>>,
+        period_s: f64,
+    ) -> Result<Self, Error> {
+        let n_cmd = commanded.first().map_or(0, Vec::len);
+        if n_cmd < 2 {
+            return Err(Error::shape("commanded", "needs at least 2 rows"));
+        }
+        let hold = ((HOLD_S / period_s).ceil() as usize).max(1);
+        let extended: Vec<Vec<f64>> = commanded
             .iter()
-            .enumerate()
-            .filter(|(_, g)| **g)
-            .map(|(j, _)| LogGap {
-                t_start: t[j],
-                t_end: t[j + 1],
+            .map(|c| {
+                let mut e = c.clone();
+                e.resize(n_cmd + hold, c[n_cmd - 1]);
+                e
             })
-            .collect(),
-        grid_samples: n_grid,
-        grid_observed,
-        residual_rms_mm: clock.residual_rms_mm,
-    };
-    let commanded = extended.into_iter().map(|mut c| {
-        c.truncate(n_grid);
-        c
-    });
-    Ok(Aligned {
-        block: MotionBlock {
-            commanded: commanded.collect(),
-            measured,
-        },
-        observed,
-        alignment,
-    })
+            .collect();
+        let reference: Vec<Vec<f64>> = plants
+            .iter()
+            .zip(&extended)
+            .map(|(p, c)| p.linear(c))
+            .collect();
+        Ok(Self {
+            plants,
+            extended,
+            reference,
+            t,
+            log,
+            period_s,
+        })
+    }
+
+    /// The log's clock against the stored simulation ([`estimate_clock`]).
+    pub fn estimate(&self) -> Result<Clock, Error> {
+        estimate_clock(&self.reference, self.period_s, &self.t, &self.log)
+    }
+
+    /// Program times (s) of the log's stamps at `clock`.
+    pub fn program_times(&self, clock: &Clock) -> Vec<f64> {
+        self.t.iter().map(|&s| clock.program_time(s)).collect()
+    }
+
+    /// Puts the log on the program's grid at `clock`.
+    ///
+    /// The grid runs from the program's start to the log's last sample (at most the program's
+    /// end plus [`HOLD_S`]). Gaps are steps between stamps longer than [`GAP_FACTOR`] times the
+    /// median step; a grid instant is observed when a log sample lies within half a period of
+    /// it, and takes the log linearly interpolated (or, next to a gap, extrapolated by at most
+    /// half a period) from the samples on its side ([`grid::resample`]).
+    /// Reference: the first-order hold of the HTTP contract's command.
+    /// Errors ([`Error::Align`]): the log ends before the program starts; more than
+    /// [`MAX_GRID_SAMPLES`] grid instants; fewer than [`MIN_OBSERVED`] observed.
+    pub fn place(&self, clock: &Clock) -> Result<Aligned, Error> {
+        let tau = self.program_times(clock);
+        let period_s = self.period_s;
+        let last_tau = *tau.last().expect("checked non-empty");
+        if last_tau < 0.0 {
+            return Err(Error::Align(format!(
+                "the log ends {:.3} s before the program starts (delay_s {:.4}): log while the program runs",
+                -last_tau, clock.delay_s
+            )));
+        }
+        let n_grid = ((last_tau / period_s + 0.5).floor() as usize + 1).min(self.extended[0].len());
+        if n_grid > MAX_GRID_SAMPLES {
+            return Err(Error::Align(format!(
+                "the log covers {n_grid} periods of {period_s} s from the program's start: at most \
+                 {MAX_GRID_SAMPLES} are diagnosed at once; send a shorter log or a longer period_s"
+            )));
+        }
+        let gaps = grid::gaps(&tau);
+        let (measured, observed) =
+            grid::resample(&self.reference, period_s, &tau, &self.log, &gaps, n_grid);
+        let grid_observed = observed.iter().filter(|w| **w > 0.0).count();
+        if grid_observed < MIN_OBSERVED {
+            return Err(Error::Align(format!(
+                "only {grid_observed} instants of the program's grid carry a log sample (delay_s \
+                 {:.4}): the log is too short or lies outside the program; at least {MIN_OBSERVED} \
+                 are needed",
+                clock.delay_s
+            )));
+        }
+        let half = 0.5 * period_s;
+        let end = (n_grid - 1) as f64 * period_s + half;
+        let samples_before = tau.iter().filter(|&&s| s < -half).count();
+        let samples_after = tau.iter().filter(|&&s| s > end).count();
+        let t = &self.t;
+        let alignment = Alignment {
+            delay_s: clock.delay_s,
+            rate_ratio: clock.rate_ratio,
+            samples: t.len(),
+            samples_used: t.len() - samples_before - samples_after,
+            samples_before,
+            samples_after,
+            gaps: gaps
+                .iter()
+                .enumerate()
+                .filter(|(_, g)| **g)
+                .map(|(j, _)| LogGap {
+                    t_start: t[j],
+                    t_end: t[j + 1],
+                })
+                .collect(),
+            grid_samples: n_grid,
+            grid_observed,
+            residual_rms_mm: clock.residual_rms_mm,
+            delay_stored_s: clock.delay_s,
+            refined_with: Vec::new(),
+            residual_effects_rms_mm: None,
+        };
+        let commanded = self.extended.iter().map(|c| c[..n_grid].to_vec());
+        Ok(Aligned {
+            block: MotionBlock {
+                commanded: commanded.collect(),
+                measured,
+            },
+            observed,
+            alignment,
+        })
+    }
 }
 
 #[cfg(test)]
