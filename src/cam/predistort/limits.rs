@@ -1,5 +1,6 @@
 //! The interpolator's junction rule seen from a G01 polyline: the speed limit at each
-//! junction from the axes' `max_accel`, and where the polyline turns.
+//! junction from the axes' `max_accel`, where the polyline turns, and the refusal of
+//! iteration steps that would make a junction slower than the undistorted polyline's.
 
 use super::{JUNCTION_SLACK, POSITION_DECIMALS, Run, norm, round_to, sub};
 use crate::motion::Machine;

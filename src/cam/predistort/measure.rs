@@ -6,8 +6,9 @@
 //! distance-weighted RMS weights each period's error by the length of path the tool tip
 //! covers around it, i.e. it is the RMS of the error along the cut surface.
 
+use super::corners::{self, CornerSpot};
 use super::reference::Reference;
-use super::{norm, sub};
+use super::{ErrorStats, Run, norm, sub};
 
 /// Path length (mm) each tool tip of `tips` (mm, one per period) stands for: half the
 /// chord to each neighbour.
@@ -86,4 +87,29 @@ pub(super) fn outward_offset(
         return 0.0;
     }
     -(e[0] * n[0] + e[1] * n[1] + e[2] * n[2]) / ln
+}
+
+/// The figures of a run whose contour errors (motion core, one per period) are `ce` and
+/// simulated axes `actual`, its command `periods` long.
+pub(super) fn stats(
+    run: &Run,
+    spots: &[CornerSpot],
+    ce: &[f64],
+    actual: &[Vec<f64>],
+    periods: usize,
+) -> ErrorStats {
+    let tips = tips_of(actual);
+    let gouge = if spots.is_empty() {
+        0.0
+    } else {
+        corners::gouge(&run.reference, spots, &run.reference.feet(&tips))
+    };
+    let sq = ce.iter().map(|v| v * v).sum::<f64>();
+    ErrorStats {
+        rms_mm: (sq / ce.len().max(1) as f64).sqrt(),
+        max_mm: ce.iter().fold(0.0f64, |m, v| m.max(*v)),
+        rms_distance_mm: distance_weighted_rms(ce, &tips),
+        gouge_mm: gouge,
+        duration_s: periods as f64 * run.period_s,
+    }
 }

@@ -28,6 +28,14 @@
 //! on the undistorted polyline. These refusals happen at sharp corners at full feed, and are
 //! reported in the notes.
 //!
+//! Corners (issue 24): where the junction limit slows the original, the refused iteration
+//! leaves the servo's braking lag, which cuts the corner. The corner stage (module `corners`)
+//! then splits each such corner point into three (end of braking, carried past, led in) and
+//! finds their offsets by pattern search on the same simulation, refusing moves that take the
+//! tool more than [`GOUGE_LIMIT_MM`] beyond the path outside the turn or past the corner's
+//! share of [`TIME_BUDGET`]; iteration steps that gouge at such a corner are taken back there.
+//! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
+//!
 //! Bad cases: machines with rotary axes (`xyzac_table`) and programs with dwells (G4) are
 //! refused ([`Error::Unsupported`]); blocks of one line that a canned cycle expands take the
 //! feed of the line's first block.
@@ -507,14 +515,14 @@ pub fn predistort(
         &cur_eval.actual,
         &orig.commanded.corners,
     );
-    let compensated = stats(
+    let compensated = measure::stats(
         &run,
         &spots,
         &report.contour_error,
         &cur_eval.actual,
         cur_eval.periods,
     );
-    let original = stats(
+    let original = measure::stats(
         &run,
         &spots,
         &orig.report.contour_error,
@@ -528,12 +536,13 @@ pub fn predistort(
             opts.max_iterations
         ));
     }
-    notes.extend(refusal);
+    // Lines the corner notes speak for are not named twice.
+    let corner_lines: Vec<String> = spots.iter().map(|c| format!("line {}:", c.line)).collect();
+    let not_corner = |n: &String| !corner_lines.iter().any(|l| n.starts_with(l.as_str()));
+    notes.extend(refusal.into_iter().filter(not_corner));
     if let Some(res) = &corner_result {
         notes.extend(corner_notes(&spots, res));
     }
-    // Lines the corner notes speak for are not named twice.
-    let corner_lines: Vec<String> = spots.iter().map(|c| format!("line {}:", c.line)).collect();
     notes.extend(
         residual_notes(
             &orig.report.contour_error,
@@ -542,7 +551,7 @@ pub fn predistort(
             &run.reference,
         )
         .into_iter()
-        .filter(|n| !corner_lines.iter().any(|l| n.starts_with(l.as_str()))),
+        .filter(not_corner),
     );
     let points = cur
         .iter()
@@ -566,31 +575,6 @@ pub fn predistort(
 
 fn next_line(lines: &[usize], k: usize) -> usize {
     lines[(k + 1).min(lines.len() - 1)]
-}
-
-/// The figures of a run whose contour errors (motion core, one per period) are `ce` and
-/// simulated axes `actual`, its command `periods` long.
-fn stats(
-    run: &Run,
-    spots: &[corners::CornerSpot],
-    ce: &[f64],
-    actual: &[Vec<f64>],
-    periods: usize,
-) -> ErrorStats {
-    let tips = measure::tips_of(actual);
-    let gouge = if spots.is_empty() {
-        0.0
-    } else {
-        corners::gouge(&run.reference, spots, &run.reference.feet(&tips))
-    };
-    let sq = ce.iter().map(|v| v * v).sum::<f64>();
-    ErrorStats {
-        rms_mm: (sq / ce.len().max(1) as f64).sqrt(),
-        max_mm: ce.iter().fold(0.0f64, |m, v| m.max(*v)),
-        rms_distance_mm: measure::distance_weighted_rms(ce, &tips),
-        gouge_mm: gouge,
-        duration_s: periods as f64 * run.period_s,
-    }
 }
 
 #[cfg(test)]
