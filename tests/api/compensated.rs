@@ -545,7 +545,7 @@ async fn contour_precompensation_at_corners(app: TestApp) {
             ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
         };
         let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
-        for i in 0..n {
+        for (i, e) in ce.iter().enumerate() {
             let back = if i > 0 { d(tip(i), tip(i - 1)) } else { 0.0 };
             let fwd = if i + 1 < n {
                 d(tip(i + 1), tip(i))
@@ -553,9 +553,9 @@ async fn contour_precompensation_at_corners(app: TestApp) {
                 0.0
             };
             let w = 0.5 * (back + fwd);
-            num += w * ce[i] * ce[i];
+            num += w * e * e;
             den += w;
-            max = max.max(ce[i]);
+            max = max.max(*e);
         }
         ((num / den).sqrt(), max)
     };
