@@ -482,3 +482,127 @@ async fn contour_precompensation(app: TestApp) {
     assert!(feeds > 10, "every point carries its feed:\n{text}");
 }
 on_both_backends!(contour_precompensation);
+
+/// Issue 24's finishing contour (a full circle R 10, then a 140° corner — the path turns by
+/// 40° — and a 90° corner, 15 mm legs) at F 2000 on a kv 40 cascade, through the contour
+/// pre-compensation; the returned text is read, interpolated and simulated here and measured
+/// against the *original* path. Gates (issue 24): distance-weighted RMS <= 0.3x the
+/// original's, max <= 0.5x, duration <= 1.15x, and the corners named where not fully helped.
+async fn contour_precompensation_at_corners(app: TestApp) {
+    use truecut::motion::{
+        DEFAULT_PERIOD_S, Machine, contour_error, interpolate, simulate_machine,
+    };
+    let cascade = json!({"kv": 40.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    let def = json!({"name": "kv 40 cascade", "kinematics": "xyz",
+        "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
+    let r = app.put_json("/v1/machines/m", &def).await;
+    assert!(r.status().is_success());
+    let original = "%\nO1002 (CIRCLE AND CORNERS F2000)\nN10 G21 G90 G17 G94\n\
+                    N20 G1 X0 Y15. F2000\nN30 G3 X0 Y15. I-10. J0\nN40 G1 Y30.\n\
+                    N50 G1 X-9.6418 Y41.4907\nN60 G1 X-21.1325 Y31.8489\nM30\n%\n";
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": original, "contour": true}))
+        .await;
+    assert_eq!(r.status(), 200);
+    let body: Value = r.json().await.unwrap();
+    let text = body["gcode"].as_str().unwrap();
+    let warnings: Vec<&str> = body["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+
+    let m = Machine::from_json(&def).unwrap();
+    let read = |t: &str| parse_with(t, &ReadOptions::default()).unwrap().0;
+    let cmd0 = interpolate(&read(original), &m, DEFAULT_PERIOD_S, 2_000_000).unwrap();
+    let cmd1 = interpolate(&read(text), &m, DEFAULT_PERIOD_S, 2_000_000).unwrap();
+    let n = cmd0.t.len().max(cmd1.t.len());
+    let pad = |cols: &[Vec<f64>]| -> Vec<Vec<f64>> {
+        cols.iter()
+            .map(|c| {
+                let mut c = c.clone();
+                let last = *c.last().unwrap();
+                c.resize(n, last);
+                c
+            })
+            .collect()
+    };
+    let mut padded0 = cmd0.clone();
+    padded0.axes = pad(&cmd0.axes);
+    padded0.t = (0..n).map(|i| i as f64 * DEFAULT_PERIOD_S).collect();
+    let mut padded1 = cmd1.clone();
+    padded1.axes = pad(&cmd1.axes);
+    padded1.t = padded0.t.clone();
+    let act0 = simulate_machine(&m, &padded0).unwrap();
+    let act1 = simulate_machine(&m, &padded1).unwrap();
+    // Distance-weighted RMS: each period's distance to the original path weighted by the
+    // path length the tool tip covers around it.
+    let figures = |act: &[Vec<f64>]| {
+        let ce = contour_error(&m.kinematics, &padded0.axes, act, &cmd0.corners).contour_error;
+        let tip = |i: usize| [act[0][i], act[1][i], act[2][i]];
+        let d = |a: [f64; 3], b: [f64; 3]| {
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        };
+        let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
+        for (i, e) in ce.iter().enumerate() {
+            let back = if i > 0 { d(tip(i), tip(i - 1)) } else { 0.0 };
+            let fwd = if i + 1 < n {
+                d(tip(i + 1), tip(i))
+            } else {
+                0.0
+            };
+            let w = 0.5 * (back + fwd);
+            num += w * e * e;
+            den += w;
+            max = max.max(*e);
+        }
+        ((num / den).sqrt(), max)
+    };
+    let (rms0, max0) = figures(&act0);
+    let (rms1, max1) = figures(&act1);
+    let duration = cmd1.t.len() as f64 / cmd0.t.len() as f64;
+    println!(
+        "contour pre-compensation at corners, circle + 140° + 90° F2000 kv 40: distance-weighted \
+         RMS {:.2} -> {:.2} um ({:.3}x, gate <= 0.3x, goal 0.1x); max {:.2} -> {:.2} um ({:.3}x, \
+         gate <= 0.5x); duration {:.3}x (gate <= 1.15x); route says RMS {:.2} -> {:.2} um per period",
+        rms0 * 1e3,
+        rms1 * 1e3,
+        rms1 / rms0,
+        max0 * 1e3,
+        max1 * 1e3,
+        max1 / max0,
+        duration,
+        body["contour"]["original_rms_mm"].as_f64().unwrap() * 1e3,
+        body["contour"]["compensated_rms_mm"].as_f64().unwrap() * 1e3,
+    );
+    for w in &warnings {
+        println!("  warning: {w}");
+    }
+    assert!(rms1 <= 0.3 * rms0, "distance-weighted RMS {rms1} vs {rms0}");
+    assert!(max1 <= 0.5 * max0, "max {max1} vs {max0}");
+    assert!(duration <= 1.15, "duration {duration}x");
+    // Feeds: F2000 everywhere except the last block into each of the two corners, which
+    // keeps the original's own speed there (at least the 90° junction limit, 5 mm/s).
+    let mut slow = 0;
+    for l in text.lines() {
+        let code = l.split('(').next().unwrap();
+        if let Some(f) = code.split_whitespace().find_map(|w| w.strip_prefix('F')) {
+            let f: f64 = f.parse().unwrap();
+            if f < 2000.0 - 1e-9 {
+                slow += 1;
+                assert!(f >= 300.0, "{l}");
+            }
+        }
+    }
+    assert!(slow <= 2, "{slow} blocks below F2000:\n{text}");
+    // Every warning about a corner names its line.
+    assert!(
+        warnings
+            .iter()
+            .filter(|w| w.contains("corner"))
+            .all(|w| w.starts_with("line ")),
+        "{warnings:?}"
+    );
+}
+on_both_backends!(contour_precompensation_at_corners);

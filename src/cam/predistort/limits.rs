@@ -1,7 +1,8 @@
 //! The interpolator's junction rule seen from a G01 polyline: the speed limit at each
-//! junction from the axes' `max_accel`, and where the polyline turns.
+//! junction from the axes' `max_accel`, where the polyline turns, and the refusal of
+//! iteration steps that would make a junction slower than the undistorted polyline's.
 
-use super::{norm, sub};
+use super::{JUNCTION_SLACK, POSITION_DECIMALS, Run, norm, round_to, sub};
 use crate::motion::Machine;
 
 /// Speed limit (mm/s) of the junction at the end of each G01 segment of the polyline `start`,
@@ -62,4 +63,58 @@ pub(super) fn turns_above(start: [f64; 3], pts: &[[f64; 3]], rad: f64) -> Vec<bo
             cos.clamp(-1.0, 1.0).acos() > rad
         })
         .collect()
+}
+
+/// Points on either side of a refused junction over which the step is tapered.
+const TAPER_POINTS: usize = 8;
+
+/// Shrinks the step `cur → cand` around every junction whose speed limit from `max_accel`
+/// falls below both the feed and the undistorted polyline's limit `init` (by more than
+/// [`JUNCTION_SLACK`]): the step is taken back at the junction and tapered in linearly over
+/// [`TAPER_POINTS`] points on either side, so that no new kink appears beside it. Counts the
+/// refusals per point (with the limiting axis) in `refused`; after 40 passes that still find
+/// such junctions the whole step is taken back.
+pub(super) fn refuse_sharp_junctions(
+    run: &Run,
+    init: &[(f64, usize)],
+    cur: &[[f64; 3]],
+    cand: &mut [[f64; 3]],
+    refused: &mut [(usize, usize)],
+) {
+    let m = cand.len();
+    let step: Vec<[f64; 3]> = (0..m).map(|k| sub(cand[k], cur[k])).collect();
+    let mut w = vec![1.0f64; m];
+    for _pass in 0..40 {
+        let feeds = run.feeds(cand);
+        let lim = junction_limits(run.machine, run.period_s, run.start, cand);
+        let mut any = false;
+        for k in 0..m.saturating_sub(1) {
+            let need = feeds[k].min(feeds[k + 1]) / 60.0;
+            let floor = need.min(init[k].0) * (1.0 - JUNCTION_SLACK);
+            if lim[k].0 < floor {
+                any = true;
+                refused[k].0 += 1;
+                refused[k].1 = lim[k].1;
+                let lo = k.saturating_sub(TAPER_POINTS);
+                let hi = (k + 1 + TAPER_POINTS).min(m - 1);
+                // Refused again: halve the whole window's step as well.
+                let again = w[k] == 0.0;
+                for (j, wj) in w.iter_mut().enumerate().take(hi + 1).skip(lo) {
+                    let d = if j <= k { k - j } else { j - k - 1 };
+                    *wj = wj.min(d as f64 / (TAPER_POINTS + 1) as f64);
+                    if again {
+                        *wj *= 0.5;
+                    }
+                }
+            }
+        }
+        if !any {
+            return;
+        }
+        for k in 0..m {
+            cand[k] =
+                std::array::from_fn(|d| round_to(cur[k][d] + w[k] * step[k][d], POSITION_DECIMALS));
+        }
+    }
+    cand.copy_from_slice(cur);
 }

@@ -28,11 +28,21 @@
 //! on the undistorted polyline. These refusals happen at sharp corners at full feed, and are
 //! reported in the notes.
 //!
+//! Corners (issue 24): where the junction limit slows the original, the refused iteration
+//! leaves the servo's braking lag, which cuts the corner. The corner stage (module `corners`)
+//! then splits each such corner point into three (end of braking, carried past, led in) and
+//! finds their offsets by pattern search on the same simulation, refusing moves that take the
+//! tool more than [`GOUGE_LIMIT_MM`] beyond the path outside the turn or past the corner's
+//! share of [`TIME_BUDGET`]; iteration steps that gouge at such a corner are taken back there.
+//! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
+//!
 //! Bad cases: machines with rotary axes (`xyzac_table`) and programs with dwells (G4) are
 //! refused ([`Error::Unsupported`]); blocks of one line that a canned cycle expands take the
 //! feed of the line's first block.
 
+mod corners;
 mod limits;
+mod measure;
 mod notes;
 mod reference;
 
@@ -41,8 +51,9 @@ use crate::motion::{
     self, Kinematics, Machine, Program, contour_error, interpolate, predict_program,
     simulate_machine,
 };
-use limits::{junction_limits, turns_above};
-use notes::{refusal_notes, residual_notes};
+pub use corners::{GOUGE_LIMIT_MM, TIME_BUDGET};
+use limits::{junction_limits, refuse_sharp_junctions, turns_above};
+use notes::{corner_notes, refusal_notes, residual_notes};
 use reference::{Reference, correction, smooth};
 
 /// Longest program (interpolation periods of the original and of every iterate) the
@@ -105,6 +116,15 @@ pub struct ErrorStats {
     pub rms_mm: f64,
     /// Largest such distance, mm.
     pub max_mm: f64,
+    /// RMS of that distance along the actual tool tip's path (each period weighted by the
+    /// path length covered around it; issue 24's measure), mm.
+    pub rms_distance_mm: f64,
+    /// Largest distance of the tool tip beyond the original path on the outer side of a
+    /// corner the junction limit slows (into the material were it an inside corner), within
+    /// 1 mm of path of the corner, mm (≤ 0: none).
+    pub gouge_mm: f64,
+    /// Duration of the command (interpolation periods × period), s.
+    pub duration_s: f64,
 }
 
 /// The compensated program and what it achieves.
@@ -146,6 +166,8 @@ pub enum Error {
 /// One simulation of a candidate set of points.
 struct Eval {
     feeds: Vec<f64>,
+    /// Line tag (point index + 1) of every period of the candidate's command.
+    line: Vec<u32>,
     /// Interpolation periods of the candidate's own command.
     periods: usize,
     /// Simulated axes, padded (at rest at the end) to at least the original's periods.
@@ -233,12 +255,17 @@ impl Run<'_> {
     /// chord's length ratio, not below the programmed feed, not above the `max_vel` of any
     /// axis (unless the programmed feed already is), rounded up to [`FEED_DECIMALS`].
     fn feeds(&self, pts: &[[f64; 3]]) -> Vec<f64> {
+        self.feeds_with(pts, &self.base_feed)
+    }
+
+    /// [`Run::feeds`] with the programmed feeds `base_feed` (mm/min) in place of the run's.
+    fn feeds_with(&self, pts: &[[f64; 3]], base_feed: &[f64]) -> Vec<f64> {
         let mut prev = self.start;
         let mut out = Vec::with_capacity(pts.len());
         for (k, p) in pts.iter().enumerate() {
             let d = sub(*p, prev);
             let len = norm(d);
-            let base = self.base_feed[k];
+            let base = base_feed[k];
             let mut f = base;
             if self.base_len[k] > 0.0 && len > self.base_len[k] {
                 f = base * len / self.base_len[k];
@@ -257,10 +284,16 @@ impl Run<'_> {
 
     /// Interpolates and simulates the points as the service would.
     fn evaluate(&self, pts: &[[f64; 3]]) -> Result<Eval, Error> {
-        let feeds = self.feeds(pts);
+        self.evaluate_with(pts, &self.base_feed)
+    }
+
+    /// [`Run::evaluate`] with the programmed feeds `base_feed` (mm/min) in place of the run's.
+    fn evaluate_with(&self, pts: &[[f64; 3]], base_feed: &[f64]) -> Result<Eval, Error> {
+        let feeds = self.feeds_with(pts, base_feed);
         let program = program_of(self.start, pts, &feeds);
         let mut cmd = interpolate(&program, self.machine, self.period_s, MAX_PERIODS)?;
         let periods = cmd.t.len();
+        let line = std::mem::take(&mut cmd.line);
         for col in cmd.axes.iter_mut() {
             let last = *col.last().unwrap_or(&0.0);
             col.resize(periods.max(self.orig_periods), last);
@@ -278,6 +311,7 @@ impl Run<'_> {
         let max = sq.iter().fold(0.0f64, |m, v| m.max(*v)).sqrt();
         Ok(Eval {
             feeds,
+            line,
             periods,
             actual,
             feet,
@@ -328,10 +362,6 @@ pub fn predistort(
         )));
     }
     let orig = predict_program(machine, program, opts.period_s, MAX_PERIODS)?;
-    let original = ErrorStats {
-        rms_mm: orig.report.rms,
-        max_mm: orig.report.max,
-    };
     let reference = Reference::new(machine, program, &orig.commanded);
     let idx = reference.choose_points(PERIODS_PER_POINT, CHORD_TOL_MM);
     let round3 = |p: [f64; 3]| p.map(|v| round_to(v, POSITION_DECIMALS));
@@ -349,7 +379,7 @@ pub fn predistort(
             l
         })
         .collect();
-    let run = Run {
+    let mut run = Run {
         machine,
         period_s: opts.period_s,
         base_feed: idx[1..].iter().map(|&k| reference.feed_mm_min[k]).collect(),
@@ -369,6 +399,24 @@ pub fn predistort(
     let breaks = turns_above(start, &pts0, BREAK_RAD);
     let mut cur = pts0.clone();
     let mut cur_eval = run.evaluate(&cur)?;
+    // Corners the junction limit slows (module `corners`): the iteration may not take the
+    // tool further beyond the path outside them than GOUGE_LIMIT_MM (or than it already went).
+    let spots = if opts.max_iterations > 0 {
+        corners::find_corners(
+            &run.reference,
+            &idx,
+            &pts0,
+            start,
+            &init_limits,
+            &run.base_feed,
+        )
+    } else {
+        Vec::new()
+    };
+    let gouge_cap: Vec<f64> = corners::score(&run.reference, &spots, &cur_eval)
+        .iter()
+        .map(|s| s.gouge.max(0.9 * GOUGE_LIMIT_MM))
+        .collect();
     let mut alpha = 1.0;
     let mut iterations = 0;
     let mut converged = false;
@@ -392,7 +440,27 @@ pub fn predistort(
             .collect();
         refuse_sharp_junctions(&run, &init_limits, &cur, &mut cand, &mut refused);
         iterations += 1;
-        let e = run.evaluate(&cand)?;
+        let mut e = run.evaluate(&cand)?;
+        // Steps that gouge at a corner are taken back over that corner's window.
+        for _ in 0..3 {
+            let sc = corners::score(&run.reference, &spots, &e);
+            let bad: Vec<usize> = (0..spots.len())
+                .filter(|&c| sc[c].gouge > gouge_cap[c])
+                .collect();
+            if bad.is_empty() {
+                break;
+            }
+            for k in 0..m {
+                if bad
+                    .iter()
+                    .any(|&c| (spots[c].lo..=spots[c].hi).contains(&run.sigma[k]))
+                {
+                    cand[k] = cur[k];
+                }
+            }
+            iterations += 1;
+            e = run.evaluate(&cand)?;
+        }
         if e.rms < cur_eval.rms * (1.0 - 1e-9) && e.max <= cur_eval.max * 1.01 + 1e-7 {
             let gain = (cur_eval.rms - e.rms) / cur_eval.rms;
             cur = cand;
@@ -408,6 +476,24 @@ pub fn predistort(
                 break;
             }
         }
+    }
+    // The corner stage (module `corners`) on the best iterate.
+    let refusal = refusal_notes(machine, &lines, &refused);
+    let mut lines = lines;
+    let mut corner_result = None;
+    if !spots.is_empty() {
+        let next = |v: &[f64], k: usize| v[(k + 1).min(v.len() - 1)];
+        run.base_feed = corners::split_values(&run.base_feed, &spots, |k| {
+            [run.base_feed[k], next(&run.base_feed, k)]
+        });
+        run.base_len = corners::split_values(&run.base_len, &spots, |_| [0.0, 0.0]);
+        run.sigma = corners::split_values(&run.sigma, &spots, |k| [run.sigma[k]; 2]);
+        lines = corners::split_values(&lines, &spots, |k| [lines[k], next_line(&lines, k)]);
+        let (res, pts, e) = corners::search(&run, &cur, &spots, run.orig_periods)?;
+        iterations += res.simulations;
+        cur = pts;
+        cur_eval = e;
+        corner_result = Some(res);
     }
     // The official figure: the motion core's contour error of the best iterate's actual
     // against the original commanded path (padded at rest to the same length).
@@ -429,10 +515,20 @@ pub fn predistort(
         &cur_eval.actual,
         &orig.commanded.corners,
     );
-    let compensated = ErrorStats {
-        rms_mm: report.rms,
-        max_mm: report.max,
-    };
+    let compensated = measure::stats(
+        &run,
+        &spots,
+        &report.contour_error,
+        &cur_eval.actual,
+        cur_eval.periods,
+    );
+    let original = measure::stats(
+        &run,
+        &spots,
+        &orig.report.contour_error,
+        &orig.actual,
+        run.orig_periods,
+    );
     let mut notes = Vec::new();
     if !converged && opts.max_iterations > 0 {
         notes.push(format!(
@@ -440,13 +536,23 @@ pub fn predistort(
             opts.max_iterations
         ));
     }
-    notes.extend(refusal_notes(machine, &lines, &refused));
-    notes.extend(residual_notes(
-        &orig.report.contour_error,
-        &orig.commanded.line,
-        &report.contour_error,
-        &run.reference,
-    ));
+    // Lines the corner notes speak for are not named twice.
+    let corner_lines: Vec<String> = spots.iter().map(|c| format!("line {}:", c.line)).collect();
+    let not_corner = |n: &String| !corner_lines.iter().any(|l| n.starts_with(l.as_str()));
+    notes.extend(refusal.into_iter().filter(not_corner));
+    if let Some(res) = &corner_result {
+        notes.extend(corner_notes(&spots, res));
+    }
+    notes.extend(
+        residual_notes(
+            &orig.report.contour_error,
+            &orig.commanded.line,
+            &report.contour_error,
+            &run.reference,
+        )
+        .into_iter()
+        .filter(not_corner),
+    );
     let points = cur
         .iter()
         .zip(&cur_eval.feeds)
@@ -467,59 +573,12 @@ pub fn predistort(
     })
 }
 
-/// Points on either side of a refused junction over which the step is tapered.
-const TAPER_POINTS: usize = 8;
-
-/// Shrinks the step `cur → cand` around every junction whose speed limit from `max_accel`
-/// falls below both the feed and the undistorted polyline's limit `init` (by more than
-/// [`JUNCTION_SLACK`]): the step is taken back at the junction and tapered in linearly over
-/// [`TAPER_POINTS`] points on either side, so that no new kink appears beside it. Counts the
-/// refusals per point (with the limiting axis) in `refused`; after 40 passes that still find
-/// such junctions the whole step is taken back.
-fn refuse_sharp_junctions(
-    run: &Run,
-    init: &[(f64, usize)],
-    cur: &[[f64; 3]],
-    cand: &mut [[f64; 3]],
-    refused: &mut [(usize, usize)],
-) {
-    let m = cand.len();
-    let step: Vec<[f64; 3]> = (0..m).map(|k| sub(cand[k], cur[k])).collect();
-    let mut w = vec![1.0f64; m];
-    for _pass in 0..40 {
-        let feeds = run.feeds(cand);
-        let lim = junction_limits(run.machine, run.period_s, run.start, cand);
-        let mut any = false;
-        for k in 0..m.saturating_sub(1) {
-            let need = feeds[k].min(feeds[k + 1]) / 60.0;
-            let floor = need.min(init[k].0) * (1.0 - JUNCTION_SLACK);
-            if lim[k].0 < floor {
-                any = true;
-                refused[k].0 += 1;
-                refused[k].1 = lim[k].1;
-                let lo = k.saturating_sub(TAPER_POINTS);
-                let hi = (k + 1 + TAPER_POINTS).min(m - 1);
-                // Refused again: halve the whole window's step as well.
-                let again = w[k] == 0.0;
-                for (j, wj) in w.iter_mut().enumerate().take(hi + 1).skip(lo) {
-                    let d = if j <= k { k - j } else { j - k - 1 };
-                    *wj = wj.min(d as f64 / (TAPER_POINTS + 1) as f64);
-                    if again {
-                        *wj *= 0.5;
-                    }
-                }
-            }
-        }
-        if !any {
-            return;
-        }
-        for k in 0..m {
-            cand[k] =
-                std::array::from_fn(|d| round_to(cur[k][d] + w[k] * step[k][d], POSITION_DECIMALS));
-        }
-    }
-    cand.copy_from_slice(cur);
+fn next_line(lines: &[usize], k: usize) -> usize {
+    lines[(k + 1).min(lines.len() - 1)]
 }
 
 #[cfg(test)]
 mod tests;
+
+#[cfg(test)]
+mod tests_corners;

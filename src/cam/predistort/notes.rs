@@ -1,7 +1,58 @@
 //! The notes of a pre-distortion: sentences on where it could not help, and why.
 
+use super::corners::{CornerResult, CornerSpot, GOUGE_LIMIT_MM};
 use super::reference::Reference;
 use crate::motion::Machine;
+
+/// One sentence per corner of the corner stage whose largest error stayed above 0.5× its
+/// original one or whose distance-weighted RMS stayed above 0.3× (corners with an original
+/// error above 1 µm), naming what held the search back, at most 20.
+pub(super) fn corner_notes(spots: &[CornerSpot], res: &CornerResult) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut more = 0;
+    for (c, s) in spots.iter().enumerate() {
+        let (b, a) = (res.before[c], res.after[c]);
+        let rms = |x: super::corners::CornerScore| (x.sum_sq / x.len.max(1e-12)).sqrt();
+        if b.max <= 1e-3 || (a.max <= 0.5 * b.max && rms(a) <= 0.3 * rms(b)) {
+            continue;
+        }
+        if out.len() >= 20 {
+            more += 1;
+            continue;
+        }
+        let why = if res.refused_gouge[c] > 0 {
+            format!(
+                "carrying the command further past the corner would take the tool more than \
+                 {:.0} µm beyond the path on the outer side (a gouge, were it an inside corner)",
+                GOUGE_LIMIT_MM * 1e3
+            )
+        } else if res.refused_time[c] > 0 {
+            "a larger correction would slow the corner beyond its share of the duration budget"
+                .to_string()
+        } else {
+            format!(
+                "the interpolator turns the command within max_accel per period, so at the \
+                 junction speed {:.1} mm/s the servo's lag cannot be taken out further with G01 points \
+                 at the programmed feed",
+                s.v_junction
+            )
+        };
+        out.push(format!(
+            "line {}: corner (turn {:.0}°): contour error {:.1} µm before, {:.1} µm after (max), \
+             distance-weighted RMS {:.1} → {:.1} µm; {why}",
+            s.line,
+            s.turn_rad.to_degrees(),
+            b.max * 1e3,
+            a.max * 1e3,
+            rms(b) * 1e3,
+            rms(a) * 1e3
+        ));
+    }
+    if more > 0 {
+        out.push(format!("and {more} more corners like these"));
+    }
+    out
+}
 
 /// One sentence per source line where pre-distortion steps were refused.
 pub(super) fn refusal_notes(

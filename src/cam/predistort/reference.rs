@@ -26,6 +26,8 @@ pub(super) struct Reference {
     pub corner: Vec<bool>,
     /// The original runs at its block's cruise speed at this knot.
     pub steady: Vec<bool>,
+    /// Speed of the original command leaving the knot (a corner: arriving at it), mm/s.
+    pub speed_mm_s: Vec<f64>,
 }
 
 /// Feed (mm/min) of `block` as the interpolator plans it along the path.
@@ -84,6 +86,7 @@ impl Reference {
             feed_mm_min: Vec::with_capacity(n),
             corner: Vec::with_capacity(n),
             steady: Vec::with_capacity(n),
+            speed_mm_s: Vec::with_capacity(n),
         };
         let mut corners = cmd.corners.iter().peekable();
         for i in 0..n {
@@ -91,6 +94,8 @@ impl Reference {
             while let Some(c) = corners.next_if(|c| c.before_sample <= i) {
                 let tip = [c.axes[0], c.axes[1], c.axes[2]];
                 r.push(tip, cmd.line[prev] as usize, feed[prev], true, false);
+                r.speed_mm_s.push(speed[prev]);
+                r.speed_mm_s.truncate(r.knots.len());
             }
             r.push(
                 at(i),
@@ -99,6 +104,8 @@ impl Reference {
                 i + 1 == n,
                 steady_sample(i),
             );
+            r.speed_mm_s.push(speed[i]);
+            r.speed_mm_s.truncate(r.knots.len());
         }
         r
     }
@@ -119,6 +126,13 @@ impl Reference {
         self.feed_mm_min.push(feed);
         self.corner.push(corner);
         self.steady.push(steady);
+    }
+
+    /// Largest speed (mm/s) of the original command over the arc parameters `lo..=hi` (mm).
+    pub fn max_speed(&self, lo: f64, hi: f64) -> f64 {
+        let a = self.cum.partition_point(|c| *c < lo).saturating_sub(1);
+        let b = self.cum.partition_point(|c| *c <= hi).min(self.cum.len());
+        self.speed_mm_s[a..b].iter().fold(0.0, |m, v| m.max(*v))
     }
 
     /// Largest distance (mm) of the knots strictly between `a` and `b` from the chord
