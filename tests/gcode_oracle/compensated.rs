@@ -43,8 +43,11 @@ fn cycle_program(code: u32) -> String {
     )
 }
 
+/// A program: name, text, G54 offset (mm) and tool (H number, length mm).
+type Case = (String, String, [f64; 3], (u32, f64));
+
 /// The programs with the G54 offset and tool length that place them in the map's box.
-fn programs() -> Vec<(String, String, [f64; 3], (u32, f64))> {
+fn programs() -> Vec<Case> {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/programs");
     let mut files: Vec<_> = std::fs::read_dir(&dir)
         .unwrap()

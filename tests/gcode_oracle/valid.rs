@@ -279,6 +279,7 @@ fn rs274_cannot(original: &str) -> Option<&'static str> {
 /// Re-reads `answer` (its lines' source lines `source_lines`) of the compensation `asked` of
 /// `original`, both read with `options`, by truecut's reader and, when `rs274` is given, by
 /// rs274 (files in `dir`); Err names the first failure. See the module docs.
+#[allow(clippy::too_many_arguments)]
 pub fn check(
     name: &str,
     original: &str,
