@@ -236,34 +236,26 @@ async fn compensated_program(
     let (out, figures) = state
         .jobs
         .run(move || -> Result<_, cam::Error> {
-            let mut out = match &map {
-                Some(map) => Some(cam::compensate_program(
+            let (out, p) = match (&map, sim) {
+                (Some(map), None) => {
+                    return Ok((
+                        cam::compensate_program(&req.gcode, &options, map, tolerance_mm)?,
+                        None,
+                    ));
+                }
+                (Some(map), Some(machine)) => cam::volumetric_and_contour(
                     &req.gcode,
                     &options,
                     map,
                     tolerance_mm,
-                )?),
-                None => None,
+                    &machine,
+                    period_s,
+                )?,
+                (None, Some(machine)) => {
+                    cam::contour_program(&req.gcode, &options, &machine, period_s)?
+                }
+                (None, None) => unreachable!("volumetric or contour was checked above"),
             };
-            let Some(machine) = sim else {
-                return Ok((out.expect("volumetric or contour"), None));
-            };
-            let text = out
-                .as_ref()
-                .map_or(req.gcode.as_str(), |o| o.gcode.as_str());
-            let (mut c, p) = cam::contour_program(text, &options, &machine, period_s)?;
-            if let Some(v) = out.take() {
-                // The reader's warnings were said once by the volumetric pass.
-                let mut warnings = v.warnings;
-                warnings.extend(p.notes.iter().cloned());
-                c.warnings = warnings;
-                c.max_shift_mm = v.max_shift_mm;
-                c.source_lines = c
-                    .source_lines
-                    .iter()
-                    .map(|&l| v.source_lines.get(l - 1).copied().unwrap_or(l))
-                    .collect();
-            }
             let figures = ContourFigures {
                 original_rms_mm: p.original.rms_mm,
                 original_max_mm: p.original.max_mm,
@@ -271,7 +263,7 @@ async fn compensated_program(
                 compensated_max_mm: p.compensated.max_mm,
                 iterations: p.iterations,
             };
-            Ok((c, Some(figures)))
+            Ok((out, Some(figures)))
         })
         .await??;
     if wants_text(&headers) {

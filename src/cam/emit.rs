@@ -59,8 +59,11 @@ pub enum LinePlan {
     },
 }
 
-/// Motion G codes × 10 that set the modal motion group.
-const MOTION_CODES: [u32; 9] = [0, 10, 20, 30, 730, 810, 820, 830, 850];
+/// Motion G codes × 10 that set the modal motion group: G0..G3 and every canned cycle the
+/// reader models (G73, G74, G81..G89).
+const MOTION_CODES: [u32; 15] = [
+    0, 10, 20, 30, 730, 740, 810, 820, 830, 840, 850, 860, 870, 880, 890,
+];
 
 /// What the emitter learned of a line before it is planned.
 #[derive(Clone, Debug, Default)]

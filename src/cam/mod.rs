@@ -20,7 +20,7 @@ mod program;
 #[cfg(test)]
 mod tests;
 
-pub use contour::{MAX_ITERATIONS, contour_program};
+pub use contour::{MAX_ITERATIONS, contour_program, volumetric_and_contour};
 pub use emit::{Emitter, LineInfo, LinePlan, decimals, format_number, rewrite, rounding_mm};
 pub use error::Error;
 pub use field::ErrorField;

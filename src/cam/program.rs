@@ -65,7 +65,8 @@ pub fn check_tolerance(tolerance_mm: f64) -> Result<(), Error> {
 /// Lines of a list named in one warning, at most this many.
 const LINES_NAMED: usize = 20;
 
-fn line_list(lines: &[usize]) -> String {
+/// `lines` as "1, 2, 3" (at most [`LINES_NAMED`], then "and N more").
+pub(super) fn line_list(lines: &[usize]) -> String {
     let mut s: Vec<String> = lines
         .iter()
         .take(LINES_NAMED)

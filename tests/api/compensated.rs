@@ -115,6 +115,64 @@ fn placed_point(blocks: &[&Block]) -> Option<[f64; 3]> {
     }
 }
 
+/// Every answer of the route goes through the validity check (issue 24, item 3;
+/// `tests/gcode_oracle/valid.rs`): re-read by truecut's reader and by rs274, both parse it,
+/// and every programmed point p of `original` is hit at p − e(p) within 1 µm, e from the
+/// map's predict route (zero without `volumetric`).
+#[allow(clippy::too_many_arguments)]
+async fn assert_valid(
+    app: &TestApp,
+    tag: &str,
+    original: &str,
+    options: &ReadOptions,
+    volumetric: bool,
+    contour: bool,
+    gcode: &str,
+    source_lines: &[usize],
+) {
+    let mut table = std::collections::HashMap::new();
+    if volumetric {
+        let pts = crate::valid::needed_points(original, options);
+        let e = predict(app, &pts).await;
+        table.extend(pts.into_iter().map(|p| p.map(f64::to_bits)).zip(e));
+    }
+    let lookup = |p: [f64; 3]| -> [f64; 3] {
+        *table
+            .get(&p.map(f64::to_bits))
+            .unwrap_or_else(|| panic!("{tag}: e({p:?}) was not fetched"))
+    };
+    let rs = crate::rs274::find();
+    if rs.is_none() {
+        println!("SKIPPED (the rs274 half of the check): rs274 not installed");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let asked = crate::valid::Asked {
+        error: volumetric.then_some(&lookup as &dyn Fn([f64; 3]) -> [f64; 3]),
+        contour,
+    };
+    let c = crate::valid::check(
+        tag,
+        original,
+        options,
+        &asked,
+        gcode,
+        source_lines,
+        rs.as_deref(),
+        dir.path(),
+    )
+    .unwrap_or_else(|e| panic!("{e}\n--- answer:\n{gcode}"));
+    println!(
+        "{tag}: valid: {} programmed points re-read, worst |q - (p - e(p))| truecut {:.3} µm, \
+         rs274 {}",
+        c.points,
+        c.worst_truecut_mm * 1e3,
+        match c.worst_rs274_mm {
+            Ok(d) => format!("{:.3} µm", d * 1e3),
+            Err(why) => format!("not read ({why})"),
+        }
+    );
+}
+
 async fn programs_match_the_predict_route(app: TestApp) {
     machine_with_map(&app).await;
     let tol = 0.001;
@@ -133,6 +191,7 @@ async fn programs_match_the_predict_route(app: TestApp) {
         assert_eq!(b["blocks"].as_u64().unwrap() as usize, out.lines().count());
         assert_eq!(source_lines.len(), out.lines().count());
         let opts = read_options(&c);
+        assert_valid(&app, c.name, c.text, &opts, true, false, out, &source_lines).await;
         // The answer parses with the reader.
         let (src_prog, _) = parse_with(c.text, &opts).unwrap();
         let (out_prog, _) = parse_with(out, &opts).expect("the answer parses");
@@ -288,6 +347,20 @@ async fn text_plain_and_points(app: TestApp) {
     assert!(comments > n / 2, "warnings as comments: {comments} of {n}");
     // The text form parses and, without the comment lines, is the JSON form's program.
     parse_with(&text, &read_options(c)).unwrap();
+    let mut text_lines: Vec<usize> =
+        serde_json::from_value(json_answer["source_lines"].clone()).unwrap();
+    text_lines.splice(2..2, std::iter::repeat_n(0, n + 1));
+    assert_valid(
+        &app,
+        "fanuc_finish_text_plain",
+        c.text,
+        &read_options(c),
+        true,
+        false,
+        &text,
+        &text_lines,
+    )
+    .await;
     let stripped: Vec<&str> = lines[..2].iter().chain(&lines[3 + n..]).copied().collect();
     assert_eq!(
         stripped.join("\n") + "\n",
@@ -432,6 +505,18 @@ async fn contour_precompensation(app: TestApp) {
         assert!(text.lines().any(|l| l == keep), "{keep} lost:\n{text}");
     }
     assert!(!text.contains("G3"), "arcs must become G1 points");
+    let source_lines: Vec<usize> = serde_json::from_value(body["source_lines"].clone()).unwrap();
+    assert_valid(
+        &app,
+        "circle_contour",
+        original,
+        &ReadOptions::default(),
+        false,
+        true,
+        text,
+        &source_lines,
+    )
+    .await;
 
     // Independent check of the figures on the text itself.
     let m = Machine::from_json(&def).unwrap();

@@ -29,3 +29,12 @@ mod stalled;
 mod step_error;
 mod step_network;
 mod volumetric;
+
+// LinuxCNC's interpreter and the validity check of compensated programs, shared with the
+// G-code oracle's binary (this one does not use all of them).
+#[allow(dead_code)]
+#[path = "../gcode_oracle/rs274.rs"]
+mod rs274;
+#[allow(dead_code)]
+#[path = "../gcode_oracle/valid.rs"]
+mod valid;

@@ -22,10 +22,15 @@
 //!   LinuxCNC), block delete `/` in mid-block (refused by LinuxCNC, optional words in Fanuc
 //!   and Haas; tested in the unit tests).
 //!
+//! Module `compensated` holds the service's compensated programs to the same two readers
+//! (issue 24, item 3; the check is `valid`, shared with the HTTP tests).
+//!
 //! Without rs274 the tests print `SKIPPED: rs274 not installed` and pass.
 
+mod compensated;
 mod generate;
 mod rs274;
+mod valid;
 
 use std::collections::BTreeSet;
 use std::path::{Path, PathBuf};

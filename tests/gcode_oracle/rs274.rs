@@ -48,11 +48,25 @@ static ONE_AT_A_TIME: Mutex<()> = Mutex::new(());
 /// program. Each run has its own working folder (rs274 keeps its parameter file,
 /// `rs274ngc.var`, in the current folder).
 pub fn run(rs274: &Path, file: &Path) -> Result<Vec<OracleMove>, String> {
+    run_with_tools(rs274, file, None)
+}
+
+/// [`run`] with a tool table (`rs274 -t tools`; LinuxCNC's `.tbl` format), for programs that
+/// change tools (`T5 M6` needs tool 5 in the table).
+pub fn run_with_tools(
+    rs274: &Path,
+    file: &Path,
+    tools: Option<&Path>,
+) -> Result<Vec<OracleMove>, String> {
     let work = file.with_extension("d");
     std::fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
-    let out = Command::new(rs274)
-        .current_dir(&work)
+    let mut cmd = Command::new(rs274);
+    cmd.current_dir(&work);
+    if let Some(t) = tools {
+        cmd.arg("-t").arg(t);
+    }
+    let out = cmd
         .arg("-g")
         .arg(file)
         .output()
