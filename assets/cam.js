@@ -180,7 +180,7 @@
       out.append(figures([
         [um(rms(e0)), "RMS error before"], [um(rms(e1)), "RMS error after"],
         [um(max(e0)), "max error before"], [um(max(e1)), "max error after"],
-        [um(c.max_shift_mm), "largest volumetric shift"], [done || "–", "compensation applied"],
+        [c.volumetric ? um(c.max_shift_mm) : "–", "largest volumetric shift"], [done || "–", "compensation applied"],
         [String(c.blocks), "blocks in the compensated program"], [String(c.warnings.length), "warnings"]]));
 
       const xyz = ["X", "Y", "Z"];

@@ -197,9 +197,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         eprintln!("warning: {name}: {}", w.as_str().unwrap_or_default());
     }
     let mut summary = format!(
-        "{name} compensated on machine {}: {} blocks, largest volumetric shift {:.4} mm",
-        args.machine, answer["blocks"], answer["max_shift_mm"]
+        "{name} compensated on machine {}: {} blocks",
+        args.machine, answer["blocks"]
     );
+    if answer["volumetric"] != json!(false) {
+        let shift = answer["max_shift_mm"].as_f64().unwrap_or(f64::NAN);
+        summary += &format!(", largest volumetric shift {:.1} µm", shift * 1000.0);
+    }
     if let Some(c) = answer.get("contour").filter(|c| c.is_object()) {
         let um = |k: &str| c[k].as_f64().unwrap_or(f64::NAN) * 1000.0;
         summary += &format!(
