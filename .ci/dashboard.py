@@ -36,6 +36,8 @@ VIEWS = [
     ("contour", "#/m/demo/contour", 2, 1),
     ("gap-motion", "#/m/demo/gap", 4, 2),
     ("volumetric", "#/m/demo-vmc/volumetric", 6, 0),
+    ("cam", "#/m/demo-vmc/cam", 6, 1),
+    ("cam-servo", "#/m/demo/cam", 6, 1),
     ("iso230-2", "#/iso230-2", 3, 1),
     ("iso230-4", "#/iso230-4", 2, 0),
     ("api", "#/api", 0, 1),
@@ -85,6 +87,27 @@ DOWNLOADS = r"""
 """
 # (view, formats that must be offered, fewest table rows): the example axis has 11 targets.
 WANT_DOWNLOADS = {"iso230-2": (["linuxcnc", "csv"], 11)}
+
+
+# The CAM view (issue 24): the compensated program offered for download (a blob: link named
+# *_comp.nc) and shown, different from the original; the figures' RMS error before and after
+# (µm) and what was applied; the colour bars' unit.
+CAM_CHECK = r"""
+(() => {
+  const a = document.querySelector('main a.download[download]');
+  const out = document.querySelector('main textarea.program');
+  const src = document.querySelector('main textarea[aria-label="G-code program"]');
+  const figs = Object.fromEntries([...document.querySelectorAll('main .figure')].map((f) =>
+    [f.querySelector('span').textContent, f.querySelector('b').textContent]));
+  return { name: a ? a.getAttribute('download') : null, blob: !!a && a.href.startsWith('blob:'),
+           lines: out ? out.value.split('\n').length : 0, same: !out || !src || out.value === src.value,
+           before: parseFloat(figs['RMS error before']), after: parseFloat(figs['RMS error after']),
+           applied: figs['compensation applied'],
+           units: [...document.querySelectorAll('svg.plot g.colour-bar text')].some((t) => t.textContent === 'error (µm)') };
+})()
+"""
+# (view, compensation the demo machine gets, largest RMS after / RMS before)
+WANT_CAM = {"cam": ("volumetric + contour", 0.5), "cam-servo": ("contour", 0.5)}
 
 
 def free_port():
@@ -281,6 +304,21 @@ def main():
                         bad.append(f"download {link['name']}: {link['rows']} rows (want {rows}+), sign stated {link['sign']}")
                     else:
                         print(f"       download {link['name']}: {link['rows']} positions, sign stated")
+            if name in WANT_CAM:
+                applied, ratio = WANT_CAM[name]
+                cam = browser.evaluate(CAM_CHECK)
+                if not cam["blob"] or not (cam["name"] or "").endswith("_comp.nc"):
+                    bad.append(f"no compensated program offered for download: {cam}")
+                if cam["lines"] < 10 or cam["same"]:
+                    bad.append(f"the compensated program is missing or the original: {cam}")
+                if cam["applied"] != applied:
+                    bad.append(f"compensation applied {cam['applied']!r}, expected {applied!r}")
+                if not cam["units"]:
+                    bad.append("no colour bar in 'error (µm)'")
+                if not cam["after"] <= ratio * cam["before"]:
+                    bad.append(f"RMS error {cam['before']} -> {cam['after']} µm: not below {ratio} x before")
+                else:
+                    print(f"       {applied}: predicted RMS error {cam['before']} -> {cam['after']} µm; download {cam['name']}, {cam['lines']} lines")
             took = time.time() - started
             summary = ", ".join(f"{p['title']} ({p['marks']} marks)" for p in plots)
             print(f"{'ok  ' if not bad else 'FAIL'} {name:12s} {route:40s} {took:5.1f} s  {len(plots)} plots  -> {path}")

@@ -1,7 +1,7 @@
 // truecut dashboard: a small hand-written SVG plotting module (no library, nothing fetched).
 // Every plot is an <svg class="plot"> with a title, axes with units, and (for colour) a
 // colour bar with values. Public: Plot.heatmap, Plot.lines, Plot.bars, Plot.colouredPath,
-// Plot.polar, Plot.niceTicks, Plot.fmt.
+// Plot.xy, Plot.polar, Plot.niceTicks, Plot.fmt.
 "use strict";
 
 const Plot = (() => {
@@ -61,6 +61,63 @@ const Plot = (() => {
   }
   const diverging = (v, vmax) => ramp(DIVERGING, 0.5 + 0.5 * v / (vmax || 1));
   const sequential = (v, lo, hi) => ramp(SEQUENTIAL, (v - lo) / ((hi - lo) || 1));
+  // Errors (0 = good): dark green, olive, orange, red; every stop readable on white.
+  const ERROR = [[0, 109, 44], [120, 160, 20], [235, 140, 0], [200, 20, 20]];
+  const errorColour = (v, hi) => ramp(ERROR, v / (hi || 1));
+
+  /**
+   * SVG path data through (xs[i], ys[i]) every `step` samples (and the last), scaled by `s`;
+   * a sample that is not finite lifts the pen (a gap, e.g. a rapid move left out).
+   */
+  function polyline(s, xs, ys, step) {
+    let d = "", pen = false;
+    const n = xs.length;
+    for (let i = 0; i < n; i = i + step < n || i === n - 1 ? i + step : n - 1) {
+      if (!isFinite(xs[i]) || !isFinite(ys[i])) { pen = false; continue; }
+      d += `${pen ? "L" : "M"}${s.x(xs[i]).toFixed(1)} ${s.y(ys[i]).toFixed(1)}`;
+      pen = true;
+    }
+    return d;
+  }
+
+  /** One row of legend items [{label, colour, dash, width}] under the title, from x = 62. */
+  function legendRow(svg, items, y) {
+    let x = 62;
+    for (const it of items) {
+      el("line", { x1: x, x2: x + 22, y1: y, y2: y, stroke: it.colour, "stroke-width": it.width || 2.5, "stroke-dasharray": it.dash || "none" }, svg);
+      const t = text(svg, x + 27, y + 4, it.label, { class: "legend" });
+      x += 37 + 6.2 * it.label.length;
+      t.setAttribute("data-legend", "1");
+    }
+  }
+
+  /** Equal x/y scales around the extent of `xs`, `ys` inside `box`; returns the ranges. */
+  function equalRanges(box, xs, ys, margin) {
+    const xr0 = extent(xs), yr0 = extent(ys);
+    const bw = box[2] - box[0], bh = box[3] - box[1];
+    const scale = Math.min(bw / (xr0[1] - xr0[0]), bh / (yr0[1] - yr0[0])) * (margin || 0.96);
+    const cx = (xr0[0] + xr0[1]) / 2, cy = (yr0[0] + yr0[1]) / 2;
+    return [[cx - bw / 2 / scale, cx + bw / 2 / scale], [cy - bh / 2 / scale, cy + bh / 2 / scale]];
+  }
+
+  /**
+   * Paths in the plane at equal scales (a drawing). opts: {title, xlabel, ylabel,
+   * series: [{x, y, label, colour, dash, width}]}; the labels make a legend under the title.
+   */
+  function xy(parent, opts) {
+    const svg = frame(parent, opts.title, "xy");
+    const box = [62, 46, W - 20, H - 46];
+    const series = opts.series || [];
+    const [xr, yr] = equalRanges(box, series.map((s) => s.x), series.map((s) => s.y));
+    const s = axes(svg, box, xr, yr, opts.xlabel, opts.ylabel);
+    const g = el("g", { class: "paths" }, svg);
+    for (const sr of series) {
+      const d = polyline(s, sr.x, sr.y, Math.max(1, Math.floor(sr.x.length / 4000)));
+      el("path", { d, fill: "none", stroke: sr.colour, "stroke-width": sr.width || 1.5, "stroke-dasharray": sr.dash || "none" }, g);
+    }
+    legendRow(svg, series.filter((x) => x.label), 36);
+    return svg;
+  }
 
   /** A new <svg class="plot"> with a title, appended to `parent`. */
   function frame(parent, title, kind) {
@@ -174,7 +231,7 @@ const Plot = (() => {
 
   /**
    * Line plot. opts: {title, xlabel, ylabel, series: [{x, y, label, colour, dash, width,
-   * dots}], bands: [{x, lo, hi, colour, label}], spans: [{x0, x1, label}], yr, xr, hline}
+   * dots, gaps (a non-finite y lifts the pen)}], bands: [{x, lo, hi, colour, label}], spans: [{x0, x1, label}], yr, xr, hline}
    */
   function lines(parent, opts) {
     const svg = frame(parent, opts.title, "lines");
@@ -201,7 +258,10 @@ const Plot = (() => {
     if (opts.hline !== undefined) el("line", { x1: box[0], x2: box[2], y1: s.y(opts.hline), y2: s.y(opts.hline), class: "zero" }, g);
     for (const sr of series) {
       const step = Math.max(1, Math.floor(sr.x.length / 4000));
-      if (!sr.dotsOnly) {
+      if (!sr.dotsOnly && sr.gaps) {
+        const d = polyline(s, sr.x, sr.y, step);
+        el("path", { d, fill: "none", stroke: sr.colour, "stroke-width": sr.width || 1.5, "stroke-dasharray": sr.dash || "none" }, g);
+      } else if (!sr.dotsOnly) {
         let d = "";
         for (let i = 0; i < sr.x.length; i += step) {
           if (!isFinite(sr.y[i])) continue;
@@ -250,21 +310,19 @@ const Plot = (() => {
 
   /**
    * A path in the plane coloured by a value per sample, over a grey reference path.
-   * opts: {title, x, y, values, unit, refX, refY, xlabel, ylabel}
+   * opts: {title, x, y, values, unit, refX, refY, xlabel, ylabel, marks, vmax (shared colour
+   * scale), palette ("error": green → red), legend: [{label, colour, dash}] under the title}
    */
   function colouredPath(parent, opts) {
     const svg = frame(parent, opts.title, "path");
-    const xr0 = extent([opts.x, opts.refX || []]), yr0 = extent([opts.y, opts.refY || []]);
-    const box = [62, 34, W - 96, H - 46];
-    const bw = box[2] - box[0], bh = box[3] - box[1];
-    const scale = Math.min(bw / (xr0[1] - xr0[0]), bh / (yr0[1] - yr0[0])) * 0.96;
-    const cx = (xr0[0] + xr0[1]) / 2, cy = (yr0[0] + yr0[1]) / 2;
-    const s = axes(svg, box, [cx - bw / 2 / scale, cx + bw / 2 / scale], [cy - bh / 2 / scale, cy + bh / 2 / scale], opts.xlabel, opts.ylabel);
-    const hi = Math.max(1e-12, ...opts.values.filter(isFinite));
+    const box = [62, opts.legend ? 46 : 34, W - 96, H - 46];
+    const [xr, yr] = equalRanges(box, [opts.x, opts.refX || []], [opts.y, opts.refY || []]);
+    const s = axes(svg, box, xr, yr, opts.xlabel, opts.ylabel);
+    const hi = opts.vmax || Math.max(1e-12, ...opts.values.filter(isFinite));
+    const colour = opts.palette === "error" ? (v) => errorColour(v, hi) : (v) => sequential(v, 0, hi);
+    if (opts.legend) legendRow(svg, opts.legend, 36);
     if (opts.refX) {
-      let d = "";
-      const st = Math.max(1, Math.floor(opts.refX.length / 3000));
-      for (let i = 0; i < opts.refX.length; i += st) d += `${d ? "L" : "M"}${s.x(opts.refX[i]).toFixed(1)} ${s.y(opts.refY[i]).toFixed(1)}`;
+      const d = polyline(s, opts.refX, opts.refY, Math.max(1, Math.floor(opts.refX.length / 3000)));
       el("path", { d, class: "reference-path" }, svg);
     }
     // One segment per ~1/1500 of the run, coloured by its largest value.
@@ -274,14 +332,15 @@ const Plot = (() => {
       const j = Math.min(n - 1, i + st);
       let v = 0;
       for (let k = i; k <= j; k++) v = Math.max(v, opts.values[k]);
-      el("line", { x1: s.x(opts.x[i]), y1: s.y(opts.y[i]), x2: s.x(opts.x[j]), y2: s.y(opts.y[j]), stroke: sequential(v, 0, hi), "stroke-width": 3, "stroke-linecap": "round" }, g);
+      if (!isFinite(v) || !isFinite(opts.x[i] + opts.y[i] + opts.x[j] + opts.y[j])) continue; // a gap
+      el("line", { x1: s.x(opts.x[i]), y1: s.y(opts.y[i]), x2: s.x(opts.x[j]), y2: s.y(opts.y[j]), stroke: colour(v), "stroke-width": 3, "stroke-linecap": "round" }, g);
     }
     for (const m of opts.marks || []) {
       el("circle", { cx: s.x(m.x), cy: s.y(m.y), r: 6, class: "worst-mark" }, svg);
       const left = s.x(m.x) > (box[0] + box[2]) / 2; // keep the label inside the plot
       text(svg, s.x(m.x) + (left ? -8 : 8), s.y(m.y) + (s.y(m.y) < box[1] + 20 ? 18 : -6), m.label, { class: "region-label", "text-anchor": left ? "end" : "start" });
     }
-    colourBar(svg, W - 82, box[1] + 16, box[3], 0, hi, (v) => sequential(v, 0, hi), opts.unit);
+    colourBar(svg, W - 82, box[1] + 16, box[3], 0, hi, colour, opts.unit);
     return svg;
   }
 
@@ -320,5 +379,5 @@ const Plot = (() => {
     return svg;
   }
 
-  return { heatmap, lines, bars, colouredPath, polar, niceTicks, fmt, diverging, sequential };
+  return { heatmap, lines, bars, colouredPath, xy, polar, niceTicks, fmt, diverging, sequential, errorColour };
 })();

@@ -18,7 +18,7 @@
     }
     main.append(table(["machine", "name", "kinematics", "views"], machines.map((m) => [
       link(`#/m/${enc(m.id)}`, m.id), m.name || "", m.kinematics,
-      h("span", { class: "links" }, link(`#/m/${enc(m.id)}/contour`, "contour error"),
+      h("span", { class: "links" }, link(`#/m/${enc(m.id)}/cam`, "CAM: compensate a program"), link(`#/m/${enc(m.id)}/contour`, "contour error"),
         link(`#/m/${enc(m.id)}/gap`, "gap diagnosis (motion)"), link(`#/m/${enc(m.id)}/volumetric`, "volumetric map")),
     ])));
     main.append(h("h3", {}, "Metrology (no machine needed)"),
@@ -30,7 +30,7 @@
     const [def, { surfaces }] = await Promise.all([
       api("GET", `/v1/machines/${enc(m)}`), api("GET", `/v1/machines/${enc(m)}/surfaces`)]);
     main.append(h("h2", {}, `Machine ${m}${def.name ? ": " + def.name : ""}`));
-    main.append(h("p", { class: "links" }, link(`#/m/${enc(m)}/contour`, "Contour error of a program"),
+    main.append(h("p", { class: "links" }, link(`#/m/${enc(m)}/cam`, "CAM: compensate a program"), link(`#/m/${enc(m)}/contour`, "Contour error of a program"),
       link(`#/m/${enc(m)}/gap`, "Sim-to-real gap diagnosis (motion)"), link(`#/m/${enc(m)}/volumetric`, "Volumetric map (ISO 230-1 components)")));
     const axes = def.axes || {};
     main.append(h("h3", {}, `Servo models (kinematics ${def.kinematics})`),

@@ -39,6 +39,75 @@ pub fn routes() -> Router<AppState> {
 /// Header giving the number of warnings of a `text/plain` answer.
 pub const WARNINGS_HEADER: &str = "x-truecut-warnings";
 
+/// Kind of the in-process job a `Prefer: respond-async` request runs as.
+pub const JOB_KIND: &str = "compensated-program";
+
+/// What a compensation computes: the program and, with `contour`, its figures.
+type Work = (cam::Compensated, Option<ContourFigures>);
+
+/// Where a compensation runs: on the worker pool while the request waits, or, when the client
+/// asks for a job (`Prefer: respond-async`, RFC 7240), as an in-process job it polls under
+/// `/v1/jobs/{id}` (a post-processor's long contour program need not hold a request open).
+struct Door<'a> {
+    state: &'a AppState,
+    job: bool,
+    volumetric: bool,
+}
+
+/// A compensation done while the request waited, or the `202` naming its job.
+enum Outcome {
+    Done(cam::Compensated, Option<ContourFigures>),
+    Accepted(Response),
+}
+
+impl<'a> Door<'a> {
+    fn new(state: &'a AppState, headers: &HeaderMap, volumetric: bool) -> Self {
+        let job = headers
+            .get_all("prefer")
+            .iter()
+            .filter_map(|v| v.to_str().ok())
+            .flat_map(|v| v.split(','))
+            .any(|p| p.trim().eq_ignore_ascii_case("respond-async"));
+        Door {
+            state,
+            job,
+            volumetric,
+        }
+    }
+
+    /// Runs `work`; as a job, its result is the JSON answer (warnings included) and its error
+    /// the sentence a 4xx would have carried.
+    async fn run(
+        self,
+        work: impl FnOnce() -> Result<Work, cam::Error> + Send + 'static,
+    ) -> ApiResult<Outcome> {
+        if !self.job {
+            let (out, figures) = self.state.jobs.run(work).await??;
+            return Ok(Outcome::Done(out, figures));
+        }
+        let volumetric = self.volumetric;
+        let id = self
+            .state
+            .jobs
+            .submit(JOB_KIND, move |p| {
+                p.set(0.01);
+                let (out, contour) = work().map_err(|e| ApiError::from(e).detail().to_string())?;
+                serde_json::to_value(ProgramResponse {
+                    gcode: out.gcode,
+                    warnings: out.warnings,
+                    max_shift_mm: out.max_shift_mm,
+                    blocks: out.blocks,
+                    volumetric,
+                    source_lines: out.source_lines,
+                    contour,
+                })
+                .map_err(|e| e.to_string())
+            })
+            .await?;
+        Ok(Outcome::Accepted(super::jobs::accepted(&id)))
+    }
+}
+
 /// Body of `compensated-program`.
 #[derive(Debug, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -94,6 +163,8 @@ pub struct ProgramResponse {
     pub max_shift_mm: f64,
     /// Blocks (lines) in the answer.
     pub blocks: usize,
+    /// Whether the volumetric pass ran (false: the machine has no map, or it was not asked).
+    pub volumetric: bool,
     /// 1-based source line of every output line.
     pub source_lines: Vec<usize>,
     /// With `contour`: the simulated contour error against the original path, mm.
@@ -233,8 +304,7 @@ async fn compensated_program(
         None
     };
     let period_s = req.period_s.unwrap_or(DEFAULT_PERIOD_S);
-    let (out, figures) = state
-        .jobs
+    let outcome = Door::new(&state, &headers, volumetric)
         .run(move || -> Result<_, cam::Error> {
             let (out, p) = match (&map, sim) {
                 (Some(map), None) => {
@@ -265,7 +335,11 @@ async fn compensated_program(
             };
             Ok((out, Some(figures)))
         })
-        .await??;
+        .await?;
+    let (out, figures) = match outcome {
+        Outcome::Done(out, figures) => (out, figures),
+        Outcome::Accepted(job) => return Ok(job),
+    };
     if wants_text(&headers) {
         let text = with_warning_comments(&out.gcode, &out.warnings);
         let mut resp =
@@ -279,6 +353,7 @@ async fn compensated_program(
         warnings: out.warnings,
         max_shift_mm: out.max_shift_mm,
         blocks: out.blocks,
+        volumetric,
         source_lines: out.source_lines,
         contour: figures,
     })

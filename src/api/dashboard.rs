@@ -27,7 +27,7 @@ pub const OPENAPI_YAML: &str = include_str!("../../openapi.yaml");
 const INDEX_HTML: &str = include_str!("../../assets/index.html");
 
 /// The files under `/assets/`: name, media type, content.
-const ASSETS: [(&str, &str, &str); 6] = [
+const ASSETS: [(&str, &str, &str); 7] = [
     (
         "style.css",
         "text/css; charset=utf-8",
@@ -57,6 +57,11 @@ const ASSETS: [(&str, &str, &str); 6] = [
         "iso.js",
         "text/javascript; charset=utf-8",
         include_str!("../../assets/iso.js"),
+    ),
+    (
+        "cam.js",
+        "text/javascript; charset=utf-8",
+        include_str!("../../assets/cam.js"),
     ),
 ];
 

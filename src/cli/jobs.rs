@@ -144,7 +144,7 @@ fn get(client: &Client, id: &str) -> anyhow::Result<Value> {
 }
 
 /// Polls the job every 200 ms until it ends; its `result` on success, exit 5 otherwise.
-fn follow(client: &Client, id: &str) -> anyhow::Result<Value> {
+pub fn follow(client: &Client, id: &str) -> anyhow::Result<Value> {
     let tty = interactive();
     let bar = if tty {
         let bar = ProgressBar::new(1000);

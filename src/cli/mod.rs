@@ -1,6 +1,6 @@
 //! Command-line entry points. Each subcommand lives in its own file with
 //! `pub struct Args` (clap) and `pub fn run(args: Args) -> anyhow::Result<()>`. The client
-//! commands (`upload`, `compensation`, `jobs`, `iso230-2`/`iso230-4` with `--server`) talk
+//! commands (`upload`, `compensation`, `jobs`, `program`, `iso230-2`/`iso230-4` with `--server`) talk
 //! to a running service through `client` and the bodies of `wire`; [`exit_code`] maps their
 //! failures to the exit codes `truecut --help` lists.
 
@@ -12,6 +12,7 @@ pub mod demo;
 pub mod gap;
 pub mod iso;
 pub mod jobs;
+pub mod program;
 pub mod serve;
 pub mod step;
 pub mod step_transfer;
@@ -61,6 +62,9 @@ pub enum Command {
     Upload(upload::Args),
     /// Fetch the compensated points of a stored measurement from a running service (CSV).
     Compensation(compensation::Args),
+    /// Compensate a G-code program on a running service: program to stdout, warnings to
+    /// stderr (for a post-processor's pipeline).
+    Program(program::Args),
     /// Background jobs of a running service: list, get (--wait), cancel, submit (--wait).
     Jobs(jobs::Args),
     /// ISO 230-2:2014 positioning accuracy and repeatability of an axis (table or logged run).
@@ -83,6 +87,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Upload(a) => upload::run(a),
         Command::Compensation(a) => compensation::run(a),
         Command::Jobs(a) => jobs::run(a),
+        Command::Program(a) => program::run(a),
         Command::Iso2302(a) => iso::run_2(a),
         Command::Iso2304(a) => iso::run_4(a),
     }

@@ -43,7 +43,8 @@ async fn the_page_and_every_asset_it_names_are_served_and_nothing_points_elsewhe
     );
     let html = r.text().await.unwrap();
     let assets = referenced_assets(&html);
-    assert!(assets.len() >= 6, "{assets:?}");
+    assert!(assets.len() >= 7, "{assets:?}");
+    assert!(assets.iter().any(|a| a == "/assets/cam.js"), "{assets:?}");
     for path in &assets {
         let r = app.get(path).await;
         assert_eq!(r.status(), 200, "{path}");
@@ -207,6 +208,23 @@ async fn the_demo_has_a_machine_with_a_volumetric_map_and_two_parts() {
         ids.contains(&"demo-1") && ids.contains(&"demo-2"),
         "{ids:?}"
     );
+    // The CAM view leaves "volumetric" to the service on its first run and learns from the
+    // answer whether the machine has a map (to add its error to the predicted tool tip).
+    let program = "G21 G90 G54\nG0 X-20 Y-10 Z5\nG1 Z0 F600\nG1 X20 F3000\nG1 Y10\nM30\n";
+    let offsets = json!({"G54": [400.0, 250.0, 200.0]});
+    for (machine, has_map) in [("demo-vmc", true), ("demo", false)] {
+        let r = app
+            .post_json(
+                &format!("/v1/machines/{machine}/compensated-program"),
+                &json!({"gcode": program, "contour": true, "work_offsets": offsets}),
+            )
+            .await;
+        assert_eq!(r.status(), 200, "{machine}");
+        let c: Value = r.json().await.unwrap();
+        assert_eq!(c["volumetric"], has_map, "{machine}: {c}");
+        assert!(c["contour"]["iterations"].as_u64().unwrap() >= 1, "{c}");
+        assert_eq!(c["max_shift_mm"].as_f64().unwrap() > 0.0, has_map, "{c}");
+    }
     // Loaded once: a second call finds the demo there.
     assert!(
         !truecut::cli::demo::load(&app.server().state().store)

@@ -9,6 +9,7 @@
 mod helpers;
 
 mod cli_client;
+mod cli_program;
 mod compensated;
 mod contour;
 mod crash;
