@@ -31,7 +31,7 @@ use super::emit::{Emitter, LinePlan};
 use super::error::Error;
 use super::field::ErrorField;
 use super::predistort::{
-    self, ErrorStats, MAX_PERIODS, PredistortOptions, Predistorted, predistort,
+    self, ErrorStats, MAX_PERIODS, PredistortOptions, Predistorted, predistort_keeping,
 };
 use super::program::{Compensated, MAX_OUTPUT_BLOCKS, compensate_program, line_list};
 
@@ -192,13 +192,16 @@ fn contour_pass(
         first_a_line: program.first_a_line,
         first_c_line: program.first_c_line,
     };
-    let mut result = predistort(
+    // Lines written as programmed (rapids, cycles, copied moves) are simulated as such.
+    let keep = |l: usize| kinds.get(l).is_some_and(|k| *k != Kind::Feed);
+    let mut result = predistort_keeping(
         machine,
         &path,
         &PredistortOptions {
             period_s,
             max_iterations: MAX_ITERATIONS,
         },
+        &keep,
     )
     .map_err(|e| match e {
         predistort::Error::Unsupported(m) => {
@@ -296,8 +299,16 @@ fn contour_pass(
     }
     let cutting = |l: usize| matches!(kinds.get(l), Some(Kind::Feed | Kind::Hole));
     let (original, compensated) = figures(&program, &gcode, options, machine, period_s, &cutting)?;
-    result.original = original;
-    result.compensated = compensated;
+    // The gouge at the corners is the pre-distortion's own figure (it knows the corners; it
+    // simulates the kept lines as they are written).
+    result.original = ErrorStats {
+        gouge_mm: result.original.gouge_mm,
+        ..original
+    };
+    result.compensated = ErrorStats {
+        gouge_mm: result.compensated.gouge_mm,
+        ..compensated
+    };
     Ok(Pass {
         out: Compensated {
             gcode,
@@ -354,22 +365,55 @@ fn figures(
         })
         .collect();
     let all = !mask.contains(&true);
-    let stats = |ce: &[f64]| {
+    // Each period weighted by the path length its tool tip covers (half the chord to each
+    // neighbour), as the pre-distortion's distance-weighted RMS.
+    let weights = |axes: &[Vec<f64>]| -> Vec<f64> {
+        let tip = |i: usize| [axes[0][i], axes[1][i], axes[2][i]];
+        let m = axes[0].len();
+        let d = |a: [f64; 3], b: [f64; 3]| {
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        };
+        (0..m)
+            .map(|i| {
+                let back = if i > 0 { d(tip(i), tip(i - 1)) } else { 0.0 };
+                let fwd = if i + 1 < m {
+                    d(tip(i + 1), tip(i))
+                } else {
+                    0.0
+                };
+                0.5 * (back + fwd)
+            })
+            .collect()
+    };
+    let stats = |ce: &[f64], axes: &[Vec<f64>], periods: usize| {
+        let w = weights(axes);
         let (mut sq, mut max, mut k) = (0.0, 0.0f64, 0usize);
+        let (mut wsq, mut wsum) = (0.0, 0.0);
         for (i, e) in ce.iter().enumerate() {
             if all || mask.get(i).copied().unwrap_or(false) {
                 sq += e * e;
                 max = max.max(*e);
                 k += 1;
+                let wi = w.get(i).copied().unwrap_or(0.0);
+                wsq += wi * e * e;
+                wsum += wi;
             }
         }
+        let rms = (sq / k.max(1) as f64).sqrt();
         ErrorStats {
-            rms_mm: (sq / k.max(1) as f64).sqrt(),
+            rms_mm: rms,
             max_mm: max,
+            rms_distance_mm: if wsum > 0.0 { (wsq / wsum).sqrt() } else { rms },
+            gouge_mm: 0.0,
+            duration_s: periods as f64 * period_s,
         }
     };
     Ok((
-        stats(&orig.report.contour_error),
-        stats(&report.contour_error),
+        stats(
+            &orig.report.contour_error,
+            &orig.actual,
+            orig.commanded.t.len(),
+        ),
+        stats(&report.contour_error, &actual, cmd.t.len()),
     ))
 }

@@ -46,6 +46,8 @@ mod measure;
 mod notes;
 mod reference;
 
+use std::collections::BTreeMap;
+
 use crate::motion::gcode::{Block, Feed, Motion, Pose};
 use crate::motion::{
     self, Kinematics, Machine, Program, contour_error, interpolate, predict_program,
@@ -204,11 +206,38 @@ fn norm(a: [f64; 3]) -> f64 {
 }
 
 /// The G01 program through `pts` from `start` at `feeds` (mm/min); block `k` carries line
-/// `k + 1` so that the interpolation's line tags name the point.
-fn program_of(start: [f64; 3], pts: &[[f64; 3]], feeds: &[f64]) -> Program {
+/// `k + 1` so that the interpolation's line tags name the point. A run of points whose source
+/// line (`lines`) is in `kept` is replaced by that line's original blocks (rapids, canned
+/// cycles: written as programmed), tagged with the run's last point, the first starting at
+/// the point before.
+fn program_of(
+    start: [f64; 3],
+    pts: &[[f64; 3]],
+    feeds: &[f64],
+    lines: &[usize],
+    kept: &BTreeMap<usize, Vec<Block>>,
+) -> Program {
     let mut blocks = Vec::with_capacity(pts.len());
     let mut prev = start;
-    for (k, (p, f)) in pts.iter().zip(feeds).enumerate() {
+    let mut k = 0;
+    while k < pts.len() {
+        if let Some(orig) = lines.get(k).and_then(|l| kept.get(l)) {
+            let mut j = k;
+            while j + 1 < pts.len() && lines.get(j + 1) == lines.get(k) {
+                j += 1;
+            }
+            for (i, b) in orig.iter().enumerate() {
+                let mut b = b.clone();
+                if i == 0 {
+                    b.start.xyz = prev;
+                }
+                b.line = j + 1;
+                prev = b.end.xyz;
+                blocks.push(b);
+            }
+            k = j + 1;
+            continue;
+        }
         blocks.push(Block {
             line: k + 1,
             motion: Motion::Linear,
@@ -218,14 +247,15 @@ fn program_of(start: [f64; 3], pts: &[[f64; 3]], feeds: &[f64]) -> Program {
                 c: 0.0,
             },
             end: Pose {
-                xyz: *p,
+                xyz: pts[k],
                 a: 0.0,
                 c: 0.0,
             },
-            feed: Feed::PerMinute(*f),
+            feed: Feed::PerMinute(feeds[k]),
             rtcp: false,
         });
-        prev = *p;
+        prev = pts[k];
+        k += 1;
     }
     Program {
         blocks,
@@ -248,6 +278,10 @@ struct Run<'a> {
     sigma: Vec<f64>,
     /// Periods of the original interpolation.
     orig_periods: usize,
+    /// Source line of each point.
+    lines: Vec<usize>,
+    /// Lines written as programmed (see [`predistort_keeping`]) and their original blocks.
+    kept: BTreeMap<usize, Vec<Block>>,
 }
 
 impl Run<'_> {
@@ -290,7 +324,7 @@ impl Run<'_> {
     /// [`Run::evaluate`] with the programmed feeds `base_feed` (mm/min) in place of the run's.
     fn evaluate_with(&self, pts: &[[f64; 3]], base_feed: &[f64]) -> Result<Eval, Error> {
         let feeds = self.feeds_with(pts, base_feed);
-        let program = program_of(self.start, pts, &feeds);
+        let program = program_of(self.start, pts, &feeds, &self.lines, &self.kept);
         let mut cmd = interpolate(&program, self.machine, self.period_s, MAX_PERIODS)?;
         let periods = cmd.t.len();
         let line = std::mem::take(&mut cmd.line);
@@ -333,6 +367,20 @@ pub fn predistort(
     program: &Program,
     opts: &PredistortOptions,
 ) -> Result<Predistorted, Error> {
+    predistort_keeping(machine, program, opts, &|_| false)
+}
+
+/// [`predistort`] with the lines for which `keep(line)` holds written as programmed: their
+/// blocks (rapids, canned cycles) are simulated as the original's, their points never move
+/// and no corner stage acts at their ends (the caller writes those lines unchanged, so the
+/// iteration must see the motion the written program will make: a rapid is one G0 block,
+/// not G01 points at the rapid rate).
+pub fn predistort_keeping(
+    machine: &Machine,
+    program: &Program,
+    opts: &PredistortOptions,
+    keep: &dyn Fn(usize) -> bool,
+) -> Result<Predistorted, Error> {
     if !(opts.period_s.is_finite() && (1e-5..=0.1).contains(&opts.period_s)) {
         return Err(Error::Option {
             field: "period_s",
@@ -366,10 +414,26 @@ pub fn predistort(
     let idx = reference.choose_points(PERIODS_PER_POINT, CHORD_TOL_MM);
     let round3 = |p: [f64; 3]| p.map(|v| round_to(v, POSITION_DECIMALS));
     let start = reference.knots[0];
+    let lines: Vec<usize> = idx[1..].iter().map(|&k| reference.line[k]).collect();
+    let mut kept: BTreeMap<usize, Vec<Block>> = BTreeMap::new();
+    for b in &program.blocks {
+        if keep(b.line) {
+            kept.entry(b.line).or_default().push(b.clone());
+        }
+    }
+    // A kept line's last point is its last block's end (where the written line ends).
     let pts0: Vec<[f64; 3]> = idx[1..]
         .iter()
-        .map(|&k| round3(reference.knots[k]))
+        .enumerate()
+        .map(|(j, &k)| {
+            let last_of_line = lines.get(j + 1) != lines.get(j);
+            match kept.get(&lines[j]) {
+                Some(b) if last_of_line => round3(b[b.len() - 1].end.xyz),
+                _ => round3(reference.knots[k]),
+            }
+        })
         .collect();
+    let fixed: Vec<bool> = lines.iter().map(|l| kept.contains_key(l)).collect();
     let mut prev = start;
     let base_len: Vec<f64> = pts0
         .iter()
@@ -388,8 +452,9 @@ pub fn predistort(
         start,
         orig_periods: orig.commanded.t.len(),
         reference,
+        lines: lines.clone(),
+        kept,
     };
-    let lines: Vec<usize> = idx[1..].iter().map(|&k| run.reference.line[k]).collect();
     let init_limits = junction_limits(machine, opts.period_s, start, &pts0);
     let half_mm: Vec<f64> = run
         .base_feed
@@ -401,7 +466,7 @@ pub fn predistort(
     let mut cur_eval = run.evaluate(&cur)?;
     // Corners the junction limit slows (module `corners`): the iteration may not take the
     // tool further beyond the path outside them than GOUGE_LIMIT_MM (or than it already went).
-    let spots = if opts.max_iterations > 0 {
+    let mut spots = if opts.max_iterations > 0 {
         corners::find_corners(
             &run.reference,
             &idx,
@@ -413,6 +478,7 @@ pub fn predistort(
     } else {
         Vec::new()
     };
+    spots.retain(|c| !fixed[c.k] && !fixed.get(c.k + 1).copied().unwrap_or(false));
     let gouge_cap: Vec<f64> = corners::score(&run.reference, &spots, &cur_eval)
         .iter()
         .map(|s| s.gouge.max(0.9 * GOUGE_LIMIT_MM))
@@ -431,7 +497,7 @@ pub fn predistort(
         );
         let mut cand: Vec<[f64; 3]> = (0..m)
             .map(|k| {
-                if k + 1 == m {
+                if k + 1 == m || fixed[k] {
                     cur[k]
                 } else {
                     round3(std::array::from_fn(|d| cur[k][d] - alpha * corr[k][d]))
@@ -489,6 +555,7 @@ pub fn predistort(
         run.base_len = corners::split_values(&run.base_len, &spots, |_| [0.0, 0.0]);
         run.sigma = corners::split_values(&run.sigma, &spots, |k| [run.sigma[k]; 2]);
         lines = corners::split_values(&lines, &spots, |k| [lines[k], next_line(&lines, k)]);
+        run.lines = lines.clone();
         let (res, pts, e) = corners::search(&run, &cur, &spots, run.orig_periods)?;
         iterations += res.simulations;
         cur = pts;
