@@ -41,7 +41,8 @@ pub enum GapCommand {
         #[arg(long)]
         seed: Option<u64>,
         /// Truth generator: `wide` (issue 23: contact anywhere, warm validation blocks, cyclic
-        /// on any axis, pairs, extremes) or `classic` (the fitter's own ranges).
+        /// on any axis, pairs, extremes), `classic` (the fitter's own ranges) or `outside`
+        /// (out-of-library plants only, for issue 23's gate).
         #[arg(long, value_enum, default_value_t = GeneratorArg::Wide)]
         generator: GeneratorArg,
         /// Also plant logs on their own clock (delay 2-30 ms, rate 0.5-4x, jitter), put on the
@@ -116,6 +117,9 @@ pub enum GeneratorArg {
     Wide,
     /// The classic truths.
     Classic,
+    /// Out-of-library plants only (issue 23's gate: answered `unexplained`, or named leaving
+    /// at least half of the held-out gap).
+    Outside,
 }
 
 /// Runs `truecut gap ...`.
@@ -147,7 +151,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             });
             let generator = match (generator, clock_logs) {
                 (GeneratorArg::Classic, false) => Generator::Classic,
-                (GeneratorArg::Classic, true) => {
+                (GeneratorArg::Outside, false) => Generator::Outside,
+                (GeneratorArg::Classic | GeneratorArg::Outside, true) => {
                     bail!("--clock-logs needs --generator wide")
                 }
                 (GeneratorArg::Wide, false) => Generator::Wide,
@@ -159,7 +164,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 for c in &report.cases {
                     println!(
                         "{:<15} {:<20} -> {:<20} {:<5} shrink {:>6.1} %  {:?}, noise {:.2} µm  \
-                         where {} {}  steps {:?}  {}",
+                         where {} {}  steps {:?}  left {:.2}  {}",
                         c.category.name(),
                         c.truth,
                         c.verdict.name(),
@@ -179,6 +184,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                         },
                         c.where_top,
                         c.steps.iter().map(|e| e.name()).collect::<Vec<_>>(),
+                        c.unexplained_share,
                         c.detail
                     );
                 }

@@ -64,6 +64,7 @@ pub fn motion_answer(axes: &[String], d: &MotionDiagnosis) -> Value {
             "rms": d.unexplained.rms,
             "share": d.unexplained.share,
             "heldout_share": d.unexplained.heldout_share,
+            "validation_share": d.unexplained.validation_share,
             "periodic": d.unexplained.periodic,
             "patterns": d.unexplained.patterns,
         },

@@ -35,6 +35,10 @@ pub enum Generator {
     /// The widened draws plus logs on their own clock (cycle of `WIDE_KINDS + 1`), put on the
     /// program's grid by `align_block` (delay and rate estimated from the motion).
     WideWithClocks,
+    /// Out-of-library plants only (the classic generator's kind 8: stick-slip, resonance,
+    /// bent screw, loose gib, wrong kinematics, sensor fault, velocity-loop gain,
+    /// straightness), for issue 23's gate.
+    Outside,
 }
 
 impl Generator {
@@ -44,6 +48,7 @@ impl Generator {
             Generator::Classic => 9,
             Generator::Wide => WIDE_KINDS,
             Generator::WideWithClocks => WIDE_KINDS + 1,
+            Generator::Outside => 1,
         }
     }
 
@@ -53,6 +58,7 @@ impl Generator {
             Generator::Classic => "classic",
             Generator::Wide => "wide",
             Generator::WideWithClocks => "wide+clock-logs",
+            Generator::Outside => "outside",
         }
     }
 }
@@ -114,6 +120,7 @@ pub fn run_generated(
     let kind = index % generator.kinds();
     let built = match generator {
         Generator::Classic => build_classic(kind, seed),
+        Generator::Outside => build_classic(8, seed),
         _ => build_wide(kind, seed),
     };
     diagnose_case(built, opts, verbose)
@@ -271,6 +278,7 @@ pub fn case_category(generator: Generator, index: usize) -> Category {
             1..=7 => Category::Single,
             _ => Category::OutOfLibrary,
         },
+        Generator::Outside => Category::OutOfLibrary,
         _ => wide_category(kind),
     }
 }
