@@ -46,7 +46,7 @@ async fn healthz_reports_database_and_lease(app: TestApp) {
         pool["in_use"].as_u64().unwrap(),
         pool["idle"].as_u64().unwrap(),
     );
-    assert!(open >= 1 && open <= 10 && in_use + idle == open, "{h}");
+    assert!((1..=10).contains(&open) && in_use + idle == open, "{h}");
 
     let lease = &h["lease"];
     assert_eq!(lease["registered"], true, "{h}");
