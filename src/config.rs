@@ -65,6 +65,12 @@ pub struct Config {
     #[arg(long, default_value_t = 10.0, env = "TRUECUT_LEASE_S")]
     pub lease_s: f64,
 
+    /// Seconds to wait at start for a database that does not answer yet (refused or
+    /// unresolved connections are retried every second): an instance started beside its
+    /// database, as in compose.yaml, waits instead of exiting. 0: fail at once.
+    #[arg(long, default_value_t = 0.0, env = "TRUECUT_DB_WAIT_S")]
+    pub db_wait_s: f64,
+
     /// MiB of request bodies the whole process holds at once (declared Content-Length; a
     /// chunked body counts as --max-body-bytes). Requests beyond it wait up to
     /// --body-timeout-s for room, then get 503 + Retry-After. Bounds the memory of
@@ -116,6 +122,7 @@ impl Config {
             body_timeout_s: 30.0,
             shutdown_grace_s: 30,
             lease_s: 10.0,
+            db_wait_s: 0.0,
             max_inflight_body_mb: DEFAULT_MAX_INFLIGHT_BODY_MB,
             max_deviation_mm: DEFAULT_MAX_DEVIATION_MM,
             max_tangential_mm: DEFAULT_MAX_TANGENTIAL_MM,

@@ -65,7 +65,14 @@ pub async fn start(config: &Config) -> Result<Server> {
         );
     }
     crate::store::check_data_dir(&config.data_dir)?;
-    let store = Store::open(&config.data_dir, config.database_url.as_deref()).await?;
+    let db_wait = Duration::try_from_secs_f64(config.db_wait_s).map_err(|_| {
+        anyhow::anyhow!(
+            "--db-wait-s must be a number of seconds >= 0, got {}",
+            config.db_wait_s
+        )
+    })?;
+    let store =
+        Store::open_waiting(&config.data_dir, config.database_url.as_deref(), db_wait).await?;
     let lease = Duration::try_from_secs_f64(config.lease_s)
         .ok()
         .filter(|d| *d >= Duration::from_millis(300))

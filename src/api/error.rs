@@ -175,6 +175,36 @@ pub fn problem_response(status: StatusCode, detail: &str) -> Response {
     resp
 }
 
+/// 503 problem+json (with `Retry-After`) carrying a report as extension members (RFC 9457
+/// §3.2): what `/healthz` and `/readyz` answer when this instance should not get requests.
+/// `members` is a JSON object; its keys must not be the standard members.
+pub fn unavailable_report(
+    detail: &str,
+    retry_after_s: u64,
+    members: serde_json::Value,
+) -> Response {
+    let status = StatusCode::SERVICE_UNAVAILABLE;
+    let mut body = serde_json::json!({
+        "type": format!("https://truecut.dev/problems/{}", slug(status)),
+        "title": status.canonical_reason().unwrap_or("Error"),
+        "status": status.as_u16(),
+        "detail": detail,
+    });
+    if let (Some(b), serde_json::Value::Object(m)) = (body.as_object_mut(), members) {
+        for (k, v) in m {
+            b.entry(k).or_insert(v);
+        }
+    }
+    let mut resp = (status, body.to_string()).into_response();
+    resp.headers_mut().insert(
+        header::CONTENT_TYPE,
+        HeaderValue::from_static("application/problem+json"),
+    );
+    resp.headers_mut()
+        .insert(header::RETRY_AFTER, HeaderValue::from(retry_after_s));
+    resp
+}
+
 impl IntoResponse for ApiError {
     fn into_response(self) -> Response {
         let status = self.status();

@@ -2,14 +2,17 @@
 
 use std::borrow::Cow;
 use std::path::{Path, PathBuf};
-use std::time::{Duration, SystemTime, UNIX_EPOCH};
+use std::sync::Arc;
+use std::time::{Duration, Instant, SystemTime, UNIX_EPOCH};
 
 use anyhow::{Context, Result, bail};
+use serde::Serialize;
 use sqlx::AnyPool;
 use sqlx::any::AnyPoolOptions;
 use sqlx::migrate::{Migration, MigrationType, Migrator};
 use sqlx::{Executor, SqlSafeStr};
 
+use super::instances::LeaseState;
 use super::models::ModelStore;
 
 /// Which database holds the records.
@@ -21,10 +24,17 @@ pub enum Backend {
     Postgres,
 }
 
-/// Records and model files. Cheap to clone (a pool handle and paths).
+/// Connections of the request pool (SQLite, PostgreSQL).
+const POOL_MAX: [u32; 2] = [8, 10];
+
+/// Records and model files. Cheap to clone (pool handles and paths).
 #[derive(Clone, Debug)]
 pub struct Store {
     pub(crate) db: AnyPool,
+    /// One connection for the lease alone (`instances.rs`): a busy request pool does not
+    /// delay the heartbeat.
+    pub(crate) hb_db: AnyPool,
+    pub(crate) lease: Arc<LeaseState>,
     backend: Backend,
     data_dir: PathBuf,
     instance: String,
@@ -101,14 +111,81 @@ fn migrator(backend: Backend) -> Migrator {
     )
 }
 
+/// The database as `/healthz` reports it.
+#[derive(Clone, Debug, Serialize)]
+pub struct DatabaseReport {
+    /// `sqlite` or `postgres`.
+    pub backend: &'static str,
+    /// `SELECT 1` answered within the probe's time limit.
+    pub reachable: bool,
+    /// Milliseconds `SELECT 1` took through the request pool (waiting for a connection
+    /// included); `null` when it did not answer.
+    pub latency_ms: Option<f64>,
+    /// Why it did not answer.
+    pub error: Option<String>,
+    /// The request pool's connections.
+    pub pool: PoolReport,
+}
+
+/// Connections of the request pool.
+#[derive(Clone, Copy, Debug, Serialize)]
+pub struct PoolReport {
+    /// Most connections it opens.
+    pub max: u32,
+    /// Connections open now.
+    pub open: u32,
+    /// Open connections lent to a request now.
+    pub in_use: u32,
+    /// Open connections waiting for a request.
+    pub idle: u32,
+}
+
+fn pool_options(backend: Backend, max: u32, acquire: Duration) -> AnyPoolOptions {
+    let options = AnyPoolOptions::new()
+        .max_connections(max)
+        .acquire_timeout(acquire);
+    if backend == Backend::Sqlite {
+        options.after_connect(|conn, _meta| {
+            Box::pin(async move {
+                // WAL lets readers run beside the writer; NORMAL is durable in WAL mode
+                // except for the last transactions on power loss.
+                conn.execute(
+                    "PRAGMA journal_mode = WAL; PRAGMA synchronous = NORMAL; \
+                     PRAGMA busy_timeout = 10000; PRAGMA foreign_keys = ON;",
+                )
+                .await?;
+                Ok(())
+            })
+        })
+    } else {
+        options
+    }
+}
+
 impl Store {
-    /// Opens (creating if needed) the data dir and the database, and applies migrations.
+    /// Opens (creating if needed) the data dir and the database, and applies migrations;
+    /// fails at once when the database does not answer ([`Store::open_waiting`] waits).
     ///
     /// `database_url`: `None` = SQLite file `truecut.db` in `data_dir`; `sqlite://...` or
     /// `postgres://...` otherwise. The data dir also holds `models/` (model files on SQLite).
     /// Each opened store is one instance with a fresh id ([`Store::instance`]): the owner
     /// of the jobs it runs, kept alive in the `instances` table by [`Store::heartbeat`].
     pub async fn open(data_dir: &Path, database_url: Option<&str>) -> Result<Store> {
+        Self::open_waiting(data_dir, database_url, Duration::ZERO).await
+    }
+
+    /// Like [`Store::open`], retrying the first connection for up to `wait` (every second)
+    /// while the database does not answer: an instance started beside its database (a
+    /// compose file) waits for it instead of exiting. A database that answers with an
+    /// error (bad password, unknown database) fails at once.
+    ///
+    /// On PostgreSQL, models saved before migration 0003 (files in this instance's data
+    /// dir) are copied into the database ([`ModelStore::copy_files_into_database`]).
+    pub async fn open_waiting(
+        data_dir: &Path,
+        database_url: Option<&str>,
+        wait: Duration,
+    ) -> Result<Store> {
         std::fs::create_dir_all(data_dir)
             .with_context(|| format!("cannot create data dir {}", data_dir.display()))?;
         let url = match database_url {
@@ -126,29 +203,29 @@ impl Store {
             bail!("database URL must start with sqlite: or postgres:// (got '{url}')");
         };
         sqlx::any::install_default_drivers();
-        let options = AnyPoolOptions::new()
-            .max_connections(match backend {
-                Backend::Sqlite => 8,
-                Backend::Postgres => 10,
-            })
-            .acquire_timeout(Duration::from_secs(30));
-        let options = if backend == Backend::Sqlite {
-            options.after_connect(|conn, _meta| {
-                Box::pin(async move {
-                    // WAL lets readers run beside the writer; NORMAL is durable in WAL mode
-                    // except for the last transactions on power loss.
-                    conn.execute(
-                        "PRAGMA journal_mode = WAL; PRAGMA synchronous = NORMAL; \
-                         PRAGMA busy_timeout = 10000; PRAGMA foreign_keys = ON;",
-                    )
-                    .await?;
-                    Ok(())
-                })
-            })
-        } else {
-            options
+        let idx = usize::from(backend == Backend::Postgres);
+        let deadline = Instant::now() + wait;
+        let db = loop {
+            match pool_options(backend, POOL_MAX[idx], Duration::from_secs(30))
+                .connect(&url)
+                .await
+            {
+                Ok(db) => break db,
+                Err(e) if Instant::now() < deadline && is_unreachable(&e) => {
+                    tracing::warn!(
+                        "the database ({}) does not answer yet, retrying: {e}",
+                        redact(&url)
+                    );
+                    tokio::time::sleep(Duration::from_secs(1)).await;
+                }
+                Err(e) => {
+                    return Err(e).with_context(|| {
+                        format!("cannot connect to the database ({})", redact(&url))
+                    });
+                }
+            }
         };
-        let db = options
+        let hb_db = pool_options(backend, 1, Duration::from_secs(5))
             .connect(&url)
             .await
             .with_context(|| format!("cannot connect to the database ({})", redact(&url)))?;
@@ -170,8 +247,13 @@ impl Store {
                 "removed temp model files left by an interrupted write"
             );
         }
+        if models.in_database() {
+            models.copy_files_into_database().await?;
+        }
         Ok(Store {
             db,
+            hb_db,
+            lease: Arc::new(LeaseState::default()),
             backend,
             data_dir: data_dir.to_path_buf(),
             instance,
@@ -218,9 +300,47 @@ impl Store {
         Ok(())
     }
 
-    /// Closes the pool (waits for connections to be returned).
+    /// Probes the database through the request pool (`SELECT 1`, at most `limit`) and
+    /// reports it with the pool's use (for `/healthz` and `/readyz`).
+    pub async fn database_report(&self, limit: Duration) -> DatabaseReport {
+        let t0 = Instant::now();
+        let probe = tokio::time::timeout(limit, self.ping()).await;
+        let took = t0.elapsed().as_secs_f64() * 1000.0;
+        let (reachable, latency_ms, error) = match probe {
+            Ok(Ok(())) => (true, Some((took * 1000.0).round() / 1000.0), None),
+            Ok(Err(e)) => (false, None, Some(format!("{e:#}"))),
+            Err(_) => (
+                false,
+                None,
+                Some(format!(
+                    "no answer within {} ms (database down, or every connection busy)",
+                    limit.as_millis()
+                )),
+            ),
+        };
+        let open = self.db.size();
+        let idle = u32::try_from(self.db.num_idle()).unwrap_or(open).min(open);
+        DatabaseReport {
+            backend: match self.backend {
+                Backend::Sqlite => "sqlite",
+                Backend::Postgres => "postgres",
+            },
+            reachable,
+            latency_ms,
+            error,
+            pool: PoolReport {
+                max: self.db.options().get_max_connections(),
+                open,
+                in_use: open - idle,
+                idle,
+            },
+        }
+    }
+
+    /// Closes the pools (waits for connections to be returned).
     pub async fn close(&self) {
         self.db.close().await;
+        self.hb_db.close().await;
     }
 }
 
@@ -230,6 +350,13 @@ pub(crate) fn now_sql(backend: Backend) -> &'static str {
         Backend::Sqlite => "CAST(ROUND((julianday('now') - 2440587.5) * 86400000.0) AS INTEGER)",
         Backend::Postgres => "CAST(EXTRACT(EPOCH FROM clock_timestamp()) * 1000 AS BIGINT)",
     }
+}
+
+/// True for connection errors that a database still starting gives (refused, reset, name
+/// not resolved yet, timed out), worth retrying; false for answers such as a bad password.
+fn is_unreachable(e: &sqlx::Error) -> bool {
+    matches!(e, sqlx::Error::Io(_) | sqlx::Error::PoolTimedOut)
+        || matches!(e, sqlx::Error::Database(d) if d.code().is_some_and(|c| c == "57P03"))
 }
 
 /// Hides a password in a database URL for error messages.

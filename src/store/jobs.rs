@@ -147,8 +147,9 @@ impl Store {
     /// with `FOR UPDATE SKIP LOCKED`, so instances claiming at once take different jobs; on
     /// SQLite writes are serialised and the update is conditional on the job still being
     /// queued. Either way a job is claimed by one instance at a time.
+    /// An instance whose lease lapsed claims nothing ([`Store::fenced`]).
     pub async fn claim_job(&self, kinds: &[String]) -> Result<Option<ClaimedJob>> {
-        if kinds.is_empty() {
+        if kinds.is_empty() || self.fenced() {
             return Ok(None);
         }
         let marks: Vec<String> = (0..kinds.len()).map(|i| format!("${}", i + 4)).collect();
@@ -215,13 +216,16 @@ impl Store {
     }
 
     /// Moves a running job of this instance to `storing` just before it writes what it
-    /// made. False when the job was cancelled (or is not running here): the caller must then
+    /// made. False when the job was cancelled (or is not running here), or when this
+    /// instance's lease expired (the fence, checked by the database in the same statement;
+    /// the job then goes back to the queue like a crashed instance's): the caller must then
     /// store nothing.
     pub async fn claim_job_commit(&self, id: &str) -> Result<bool> {
-        let n = sqlx::query(
+        let fence = super::instances::lease_held_sql(self.backend(), "$3");
+        let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = 'storing', updated_at = $1 \
-             WHERE id = $2 AND state = 'running' AND owner = $3",
-        )
+             WHERE id = $2 AND state = 'running' AND owner = $3 AND {fence}"
+        )))
         .bind(now_ms())
         .bind(id.to_string())
         .bind(self.instance().to_string())

@@ -14,6 +14,7 @@ mod docs;
 mod instances;
 mod iso230;
 mod jobs;
+mod legacy_models;
 mod machines;
 mod measurements;
 mod model_versions;
@@ -22,8 +23,8 @@ mod storage;
 mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
-pub use database::{Backend, Store};
-pub use instances::Reaped;
+pub use database::{Backend, DatabaseReport, PoolReport, Store};
+pub use instances::{LeaseReport, Reaped};
 pub use iso230::Iso230Run;
 pub use jobs::{CancelOutcome, ClaimedJob, JobRecord};
 pub use machines::MachineSummary;

@@ -296,11 +296,13 @@ impl ModelStore {
                 if let Some(o) = result.as_object_mut() {
                     o.insert("model_version".into(), version.into());
                 }
-                let n = sqlx::query(
+                // The fence: only while this instance's lease holds (`instances.rs`).
+                let fence = super::instances::lease_held_sql(self.backend, "$5");
+                let n = sqlx::query(sqlx::AssertSqlSafe(format!(
                     "UPDATE jobs SET state = 'done', progress = 1.0, result = $1, error = NULL, \
                      updated_at = $2, finished_at = $3 \
-                     WHERE id = $4 AND owner = $5 AND state = 'storing'",
-                )
+                     WHERE id = $4 AND owner = $5 AND state = 'storing' AND {fence}"
+                )))
                 .bind(result.to_string())
                 .bind(now)
                 .bind(now)
@@ -310,7 +312,11 @@ impl ModelStore {
                 .await?
                 .rows_affected();
                 if n != 1 {
-                    bail!("job {} is no longer this instance's to finish", j.id);
+                    bail!(
+                        "job {} is no longer this instance's to finish (taken over, or this \
+                         instance's lease expired)",
+                        j.id
+                    );
                 }
             }
             let pruned = self.prune(&mut tx, machine, &surface_key, kind).await?;
