@@ -298,7 +298,7 @@ impl ModelStore {
                 }
                 let n = sqlx::query(
                     "UPDATE jobs SET state = 'done', progress = 1.0, result = $1, error = NULL, \
-                     updated_at = $2, finished_at = $3 \
+                     input = NULL, updated_at = $2, finished_at = $3 \
                      WHERE id = $4 AND owner = $5 AND state = 'storing'",
                 )
                 .bind(result.to_string())
