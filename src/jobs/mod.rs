@@ -20,12 +20,14 @@
 //! dropped when it ends, and jobs older than `--job-retention` are deleted
 //! ([`JobPool::start_pruning`]).
 
+mod limits;
 mod pool;
 mod progress;
 mod worker;
 
+pub use limits::prune_interval;
 pub use pool::{
     CLAIM_POLL, DEFAULT_LEASE, Error, INTERRUPTED, JobPage, JobPool, MAX_ATTEMPTS, RETRY_AFTER_S,
-    Runner, prune_interval,
+    Runner,
 };
 pub use progress::{CANCEL_POLL, Cancel, Cancelled, JobStatus, Progress};

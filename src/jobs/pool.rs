@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
 use tokio::task::JoinHandle;
 
+use super::limits::{SetOnDrop, sleep_or_forever};
 use super::progress::{Cancel, JobStatus, Progress};
 use super::worker::{claim_loop, finish, new_progress, stoppable, watch_job};
 use crate::numeric;
@@ -123,7 +124,7 @@ pub struct JobPage {
 /// The worker pool. Cheap to clone.
 #[derive(Clone)]
 pub struct JobPool {
-    inner: Arc<Inner>,
+    pub(super) inner: Arc<Inner>,
 }
 
 impl std::fmt::Debug for JobPool {
@@ -150,30 +151,6 @@ impl Drop for Count<'_> {
     fn drop(&mut self) {
         self.0.fetch_sub(1, Ordering::Relaxed);
     }
-}
-
-/// Sets a flag when dropped (a synchronous request's work is told to stop when the request
-/// goes away).
-struct SetOnDrop(Arc<AtomicBool>);
-
-impl Drop for SetOnDrop {
-    fn drop(&mut self) {
-        self.0.store(true, Ordering::Relaxed);
-    }
-}
-
-/// Sleeps for `limit`, or for ever without one.
-pub(super) async fn sleep_or_forever(limit: Option<Duration>) {
-    match limit {
-        Some(d) => tokio::time::sleep(d).await,
-        None => std::future::pending().await,
-    }
-}
-
-/// How often the jobs are pruned for a retention of `retention`: a quarter of it, between
-/// 1 s and 10 min (a job outlives its retention by at most that).
-pub fn prune_interval(retention: Duration) -> Duration {
-    (retention / 4).clamp(Duration::from_secs(1), Duration::from_secs(600))
 }
 
 /// The message stored for jobs an interruption failed (no stored input, or out of attempts).
@@ -403,44 +380,6 @@ impl JobPool {
                 after: limit.unwrap_or_default(),
             }),
             Err(e) => Err(Error::Worker(format!("worker failed: {e}"))),
-        }
-    }
-
-    /// Sets the time limit of every piece of work (`--job-timeout`): a synchronous request's
-    /// work ends [`Error::Stopped`], a job ends `failed` saying so. `None`: no limit.
-    pub fn set_timeout(&self, limit: Option<Duration>) {
-        let ms = limit.map_or(0, |d| {
-            u64::try_from(d.as_millis()).unwrap_or(u64::MAX).max(1)
-        });
-        self.inner.timeout_ms.store(ms, Ordering::Relaxed);
-    }
-
-    /// Deletes the jobs that ended more than `retention` ago (`--job-retention`), now and
-    /// then every [`prune_interval`]`(retention)`, until shutdown. Any number of instances
-    /// may prune one database: the deletion is idempotent.
-    pub fn start_pruning(&self, retention: Duration) {
-        let store = self.inner.store.clone();
-        let every = prune_interval(retention);
-        let task = tokio::spawn(async move {
-            let mut tick = tokio::time::interval(every);
-            tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-            loop {
-                tick.tick().await;
-                match store.prune_jobs(retention).await {
-                    Ok(0) => {}
-                    Ok(n) => tracing::info!(deleted = n, "pruned jobs older than --job-retention"),
-                    Err(e) => tracing::error!("cannot prune old jobs: {e:#}"),
-                }
-            }
-        });
-        if let Some(old) = self
-            .inner
-            .pruner
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .replace(task)
-        {
-            old.abort();
         }
     }
 

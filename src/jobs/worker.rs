@@ -10,7 +10,8 @@ use serde_json::Value;
 use tokio::sync::OwnedSemaphorePermit;
 use tokio::task::JoinHandle;
 
-use super::pool::{CLAIM_POLL, Count, Inner, sleep_or_forever};
+use super::limits::sleep_or_forever;
+use super::pool::{CLAIM_POLL, Count, Inner};
 use super::progress::{CANCEL_POLL, Gate, Progress};
 use crate::store::{ClaimedJob, Store};
 

@@ -1,3 +1,5 @@
+//! Unit tests of the should-stop check: runs, nesting, propagation to scoped threads.
+
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
 
