@@ -2,6 +2,7 @@
 
 use std::net::SocketAddr;
 use std::path::PathBuf;
+use std::time::Duration;
 
 /// Default request body limit: 128 MiB. A 250,000-point JSON upload is about 15 MiB and a
 /// 100,000-segment step-error body with 5-point contact curves about 60 MiB; the limit leaves
@@ -78,6 +79,18 @@ pub struct Config {
     #[arg(long, default_value_t = DEFAULT_MAX_INFLIGHT_BODY_MB, env = "TRUECUT_MAX_INFLIGHT_BODY_MB")]
     pub max_inflight_body_mb: usize,
 
+    /// How long ended jobs (done, failed, cancelled) and their results are kept before they
+    /// are deleted: a number of seconds or a number with a unit `s`, `m`, `h` or `d` (e.g.
+    /// `7d`, `12h`). `0` keeps them for ever. A job's input is dropped as soon as it ends.
+    #[arg(long, default_value = "7d", value_parser = parse_duration, env = "TRUECUT_JOB_RETENTION")]
+    pub job_retention: Duration,
+
+    /// Longest a job, or a request's computation, may run before it is stopped (the job ends
+    /// `failed` saying so, the request gets 503): seconds or a number with a unit `s`, `m`,
+    /// `h` or `d`. `0`: no limit.
+    #[arg(long, default_value = "6h", value_parser = parse_duration, env = "TRUECUT_JOB_TIMEOUT")]
+    pub job_timeout: Duration,
+
     /// Plausibility limit of a probe deviation, mm: a measurement whose deviation from the
     /// nominal (along the normal) exceeds it in magnitude is refused (400 naming the point).
     #[arg(long, default_value_t = DEFAULT_MAX_DEVIATION_MM, env = "TRUECUT_MAX_DEVIATION_MM")]
@@ -88,6 +101,40 @@ pub struct Config {
     /// spacing. Beyond it the upload is refused as reversed or shifted.
     #[arg(long, default_value_t = DEFAULT_MAX_TANGENTIAL_MM, env = "TRUECUT_MAX_TANGENTIAL_MM")]
     pub max_tangential_mm: f64,
+}
+
+/// Default `--job-retention`: 7 days.
+pub const DEFAULT_JOB_RETENTION: Duration = Duration::from_secs(7 * 24 * 3600);
+
+/// Default `--job-timeout`: 6 hours (training on the largest accepted batch takes minutes;
+/// the limit is for work that runs away, not for big work).
+pub const DEFAULT_JOB_TIMEOUT: Duration = Duration::from_secs(6 * 3600);
+
+/// Reads a duration flag: a whole or decimal number of seconds, or a number followed by
+/// `s`, `m`, `h` or `d` (`90s`, `15m`, `12h`, `7d`).
+pub fn parse_duration(s: &str) -> Result<Duration, String> {
+    let t = s.trim();
+    let (number, unit) = match t.char_indices().last() {
+        Some((i, c)) if c.is_ascii_alphabetic() => (&t[..i], c),
+        _ => (t, 's'),
+    };
+    let scale = match unit {
+        's' => 1.0,
+        'm' => 60.0,
+        'h' => 3600.0,
+        'd' => 86_400.0,
+        _ => {
+            return Err(format!(
+                "'{s}': the unit must be s, m, h or d (e.g. 7d, 12h, 90s)"
+            ));
+        }
+    };
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a duration: write e.g. 7d, 12h, 15m, 90s or 30"))?;
+    Duration::try_from_secs_f64(value * scale)
+        .map_err(|_| format!("'{s}' must be a finite duration of 0 or more"))
 }
 
 /// Default `--max-inflight-body-mb`: one maximum-size body (128 MiB) plus room for small
@@ -126,6 +173,8 @@ impl Config {
             max_inflight_body_mb: DEFAULT_MAX_INFLIGHT_BODY_MB,
             max_deviation_mm: DEFAULT_MAX_DEVIATION_MM,
             max_tangential_mm: DEFAULT_MAX_TANGENTIAL_MM,
+            job_retention: DEFAULT_JOB_RETENTION,
+            job_timeout: DEFAULT_JOB_TIMEOUT,
         }
     }
 

@@ -255,12 +255,13 @@ impl std::fmt::Display for ApiError {
 
 // ---------- every core error to a status (one file decides them all) ----------
 
-/// A full pool or one shutting down is 503 + Retry-After; a failed worker or an unrecorded
-/// job is a 500.
+/// A full pool or one shutting down is 503 + Retry-After, and so is work stopped at the
+/// server's `--job-timeout` (the limit is the server's, not the input's fault); a failed
+/// worker or an unrecorded job is a 500.
 impl From<jobs::Error> for ApiError {
     fn from(e: jobs::Error) -> Self {
         match e {
-            jobs::Error::Full { .. } | jobs::Error::ShuttingDown => {
+            jobs::Error::Full { .. } | jobs::Error::ShuttingDown | jobs::Error::Stopped { .. } => {
                 ApiError::unavailable(e.to_string(), jobs::RETRY_AFTER_S)
             }
             jobs::Error::Worker(cause) => ApiError::Internal(cause),

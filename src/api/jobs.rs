@@ -1,6 +1,7 @@
-//! Background jobs: `GET /v1/jobs` (newest first, filtered), `GET /v1/jobs/{id}` (state,
-//! progress, result, times) and `DELETE /v1/jobs/{id}` (cancel; CONTRACT v1.1), and the one
-//! `202 Accepted` answer every job-submitting route gives ([`accepted`]).
+//! Background jobs: `GET /v1/jobs` (newest first, filtered, paged with a cursor, results
+//! only with `?result=true`), `GET /v1/jobs/{id}` (state, progress, result, times) and
+//! `DELETE /v1/jobs/{id}` (cancel; CONTRACT v1.1), and the one `202 Accepted` answer every
+//! job-submitting route gives ([`accepted`]).
 
 use std::collections::HashMap;
 
@@ -28,6 +29,23 @@ pub fn routes() -> Router<AppState> {
 pub const LIST_DEFAULT: usize = 100;
 /// See [`LIST_DEFAULT`].
 pub const LIST_MAX: usize = 1000;
+/// Largest page of `GET /v1/jobs?result=true` (a result can be tens of MB: a decomposition
+/// of 1,000,000 samples).
+pub const LIST_MAX_WITH_RESULTS: usize = 100;
+
+/// The opaque cursor of the page after the job `(created_at ms, id)`: hex of `ms:id`.
+fn cursor(created_at_ms: i64, id: &str) -> String {
+    hex::encode(format!("{created_at_ms}:{id}"))
+}
+
+/// Reads a cursor made by [`cursor`]; `None` for anything else.
+fn parse_cursor(s: &str) -> Option<(i64, String)> {
+    let bytes = hex::decode(s).ok()?;
+    let text = String::from_utf8(bytes).ok()?;
+    let (ms, id) = text.split_once(':')?;
+    let ms = ms.parse::<i64>().ok()?;
+    (!id.is_empty() && id.len() <= 64).then(|| (ms, id.to_string()))
+}
 
 const STATES: [&str; 5] = ["queued", "running", "done", "failed", "cancelled"];
 
@@ -64,12 +82,30 @@ async fn list_jobs(
     State(state): State<AppState>,
     Query(query): Query<HashMap<String, String>>,
 ) -> ApiResult<ApiJson<serde_json::Value>> {
-    const KNOWN: [&str; 3] = ["state", "kind", "limit"];
+    const KNOWN: [&str; 5] = ["state", "kind", "limit", "cursor", "result"];
     if let Some(k) = query.keys().find(|k| !KNOWN.contains(&k.as_str())) {
         return Err(ApiError::bad_request(format!(
-            "unknown query parameter '{k}': use state, kind or limit"
+            "unknown query parameter '{k}': use state, kind, limit, cursor or result"
         )));
     }
+    let with_result = match query.get("result").map(String::as_str) {
+        None | Some("false") => false,
+        Some("true") => true,
+        Some(other) => {
+            return Err(ApiError::bad_request(format!(
+                "result '{other}' must be true or false"
+            )));
+        }
+    };
+    let after = match query.get("cursor") {
+        None => None,
+        Some(c) => Some(parse_cursor(c).ok_or_else(|| {
+            ApiError::bad_request(format!(
+                "cursor '{c}' is not one this service gave: pass the 'next' of the previous \
+                 page as it was, or leave cursor out for the first page"
+            ))
+        })?),
+    };
     let wanted = query.get("state").map(String::as_str);
     if let Some(s) = wanted {
         if !STATES.contains(&s) {
@@ -79,24 +115,43 @@ async fn list_jobs(
             )));
         }
     }
+    let max = if with_result {
+        LIST_MAX_WITH_RESULTS
+    } else {
+        LIST_MAX
+    };
     let limit = match query.get("limit") {
-        None => LIST_DEFAULT,
+        None => LIST_DEFAULT.min(max),
         Some(l) => match l.parse::<usize>() {
-            Ok(n) if (1..=LIST_MAX).contains(&n) => n,
+            Ok(n) if (1..=max).contains(&n) => n,
             _ => {
+                let with = if with_result { " with result=true" } else { "" };
                 return Err(ApiError::bad_request(format!(
-                    "limit '{l}' must be a whole number from 1 to {LIST_MAX}"
+                    "limit '{l}' must be a whole number from 1 to {max}{with}"
                 )));
             }
         },
     };
     let kind = query.get("kind").map(String::as_str);
-    let jobs = state
+    let page = state
         .jobs
-        .list(wanted, kind, limit)
+        .list(
+            wanted,
+            kind,
+            limit,
+            after.as_ref().map(|(ms, id)| (*ms, id.as_str())),
+            with_result,
+        )
         .await
         .map_err(ApiError::internal)?;
-    Ok(ApiJson(json!({ "jobs": jobs })))
+    let mut jobs = serde_json::to_value(&page.jobs).map_err(ApiError::internal)?;
+    if !with_result && let Some(list) = jobs.as_array_mut() {
+        for job in list.iter_mut().filter_map(serde_json::Value::as_object_mut) {
+            job.remove("result");
+        }
+    }
+    let next = page.next.map(|(ms, id)| cursor(ms, &id));
+    Ok(ApiJson(json!({ "jobs": jobs, "next": next })))
 }
 
 async fn get_job(

@@ -39,6 +39,12 @@ pub enum JobsCommand {
         /// At most this many.
         #[arg(long)]
         limit: Option<usize>,
+        /// The page after this cursor (the `next` of the previous answer).
+        #[arg(long)]
+        cursor: Option<String>,
+        /// Also list each job's result (at most 100 a page).
+        #[arg(long)]
+        result: bool,
     },
     /// Show a job (JSON on stdout); with --wait, follow it to its end and print its result.
     #[command(
@@ -77,13 +83,24 @@ pub enum JobsCommand {
 pub fn run(args: Args) -> anyhow::Result<()> {
     let client = Client::new(&args.server)?;
     let answer = match args.command {
-        JobsCommand::List { state, limit } => {
+        JobsCommand::List {
+            state,
+            limit,
+            cursor,
+            result,
+        } => {
             let mut q: Vec<(&str, String)> = Vec::new();
             if let Some(s) = state {
                 q.push(("state", s));
             }
             if let Some(l) = limit {
                 q.push(("limit", l.to_string()));
+            }
+            if let Some(c) = cursor {
+                q.push(("cursor", c));
+            }
+            if result {
+                q.push(("result", "true".to_string()));
             }
             let rb = client.request(Method::GET, "/v1/jobs").query(&q);
             client

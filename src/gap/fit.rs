@@ -99,6 +99,7 @@ pub fn fit(effect: Effect, data: &FitData, w: &[f64]) -> Fitted {
 
 /// [`fit`] within the search bounds `bounds`.
 pub fn fit_within(effect: Effect, data: &FitData, w: &[f64], bounds: &SearchBounds) -> Fitted {
+    crate::numeric::stop::check();
     let axes = data.plants.len();
     match effect {
         Effect::None | Effect::Unexplained => Fitted::None,
@@ -126,6 +127,7 @@ pub fn fit_within(effect: Effect, data: &FitData, w: &[f64], bounds: &SearchBoun
             let mut bs = Vec::new();
             let mut starts = Vec::new();
             for k in 0..axes {
+                crate::numeric::stop::check();
                 let dir = first_direction(&data.base[k]);
                 // the start in the gap only shows before the gap first closes; when the
                 // training samples cannot tell (exact ties), "centred" (0) stays
@@ -221,6 +223,7 @@ pub fn fit_within(effect: Effect, data: &FitData, w: &[f64], bounds: &SearchBoun
         Effect::CyclicError => {
             let (mut pitch, mut sn, mut cs) = (Vec::new(), Vec::new(), Vec::new());
             for k in 0..axes {
+                crate::numeric::stop::check();
                 let x = &data.base[k];
                 let r: Vec<f64> = data.meas[k].iter().zip(x).map(|(m, b)| m - b).collect();
                 let solve_strided = |p: f64, stride: usize| -> (f64, f64, f64) {
@@ -297,6 +300,7 @@ pub fn fit_within(effect: Effect, data: &FitData, w: &[f64], bounds: &SearchBoun
                 let mut rates = Vec::new();
                 let mut loss = 0.0;
                 for k in 0..axes {
+                    crate::numeric::stop::check();
                     let (mut rg, mut gg, mut rr) = (0.0, 0.0, 0.0);
                     for i in 0..n {
                         let g = thermal_basis(i as f64 * period, tau);

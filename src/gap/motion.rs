@@ -402,6 +402,7 @@ pub fn diagnose_motion_structured(
     let mut held_stored: f64 = residual.iter().flatten().map(|r| r * r).sum();
     let mut held_left = held_stored;
     while steps.len() < opts.max_steps {
+        crate::numeric::stop::check();
         let candidates: Vec<Effect> = Effect::LIBRARY
             .iter()
             .copied()

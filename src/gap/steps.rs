@@ -103,6 +103,7 @@ impl Model {
     /// Fits member or candidate `effect` on weights `w` to what the members other than
     /// `skip` leave: `meas − Σ_{j≠skip} Δ_j`.
     fn fit_leaving(&self, p: &Problem, effect: Effect, skip: Option<usize>, w: &[f64]) -> Fitted {
+        crate::numeric::stop::check();
         let n = p.meas.first().map_or(0, Vec::len);
         let others = self.sum_except(skip, p.meas.len(), n);
         let target: Vec<Vec<f64>> = p

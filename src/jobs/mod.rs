@@ -13,12 +13,21 @@
 //! heartbeat; the jobs of an instance whose lease expired (crash, kill, lost network) are
 //! re-queued if their input is stored and they have attempts left, failed otherwise, by
 //! whichever live instance notices first. A graceful stop does the same for its own jobs.
+//!
+//! Every piece of work runs with a should-stop check (`numeric::stop`) that the cores poll
+//! between units of work: a cancelled job, a job or request past `--job-timeout`, and a
+//! request whose client went away free their worker within about 100 ms. A job's input is
+//! dropped when it ends, and jobs older than `--job-retention` are deleted
+//! ([`JobPool::start_pruning`]).
 
+mod limits;
 mod pool;
 mod progress;
 mod worker;
 
+pub use limits::prune_interval;
 pub use pool::{
-    CLAIM_POLL, DEFAULT_LEASE, Error, INTERRUPTED, JobPool, MAX_ATTEMPTS, RETRY_AFTER_S, Runner,
+    CLAIM_POLL, DEFAULT_LEASE, Error, INTERRUPTED, JobPage, JobPool, MAX_ATTEMPTS, RETRY_AFTER_S,
+    Runner,
 };
 pub use progress::{CANCEL_POLL, Cancel, Cancelled, JobStatus, Progress};

@@ -1,16 +1,18 @@
 //! The worker pool: admission (back-pressure), synchronous work, in-process and stored
-//! jobs, the instance's lease, cancellation and shutdown.
+//! jobs, the instance's lease, cancellation, the time limit of work and shutdown.
 
 use std::collections::HashMap;
-use std::sync::atomic::{AtomicU64, AtomicUsize, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU64, AtomicUsize, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
 use tokio::task::JoinHandle;
 
+use super::limits::{SetOnDrop, sleep_or_forever};
 use super::progress::{Cancel, JobStatus, Progress};
-use super::worker::{claim_loop, finish, new_progress, watch_job};
+use super::worker::{claim_loop, finish, new_progress, stoppable, watch_job};
+use crate::numeric;
 use crate::store::{CancelOutcome, Reaped, Store};
 use serde_json::Value;
 
@@ -52,6 +54,17 @@ pub enum Error {
     /// The job could not be recorded.
     #[error("{0:#}")]
     Store(#[from] anyhow::Error),
+    /// Synchronous work ran longer than the pool's time limit (`--job-timeout`) and was
+    /// stopped.
+    #[error(
+        "the computation ran longer than the server's --job-timeout ({} s) and was stopped; \
+         send a smaller input, or ask the operator for a longer timeout",
+        .after.as_secs_f64()
+    )]
+    Stopped {
+        /// The time limit.
+        after: Duration,
+    },
 }
 
 pub(super) struct Inner {
@@ -74,9 +87,21 @@ pub(super) struct Inner {
     pub(super) lease: Duration,
     pub(super) claim_loop: Mutex<Option<JoinHandle<()>>>,
     pub(super) heartbeat: Mutex<Option<JoinHandle<()>>>,
+    /// The periodic pruning of old jobs ([`JobPool::start_pruning`]).
+    pub(super) pruner: Mutex<Option<JoinHandle<()>>>,
+    /// Longest run of a piece of work in ms (`--job-timeout`); 0: no limit.
+    pub(super) timeout_ms: AtomicU64,
 }
 
 impl Inner {
+    /// The time limit of a piece of work (`--job-timeout`), if any.
+    pub(super) fn timeout(&self) -> Option<Duration> {
+        match self.timeout_ms.load(Ordering::Relaxed) {
+            0 => None,
+            ms => Some(Duration::from_millis(ms)),
+        }
+    }
+
     /// The runners, while the pool serves stored jobs.
     pub(super) fn runners(&self) -> Option<Arc<HashMap<String, Runner>>> {
         self.runners
@@ -86,10 +111,20 @@ impl Inner {
     }
 }
 
+/// A page of [`JobPool::list`].
+#[derive(Clone, Debug)]
+pub struct JobPage {
+    /// The jobs, newest first.
+    pub jobs: Vec<JobStatus>,
+    /// Where the next page starts (`(created_at, id)` of this page's last job), when there
+    /// are more jobs.
+    pub next: Option<(i64, String)>,
+}
+
 /// The worker pool. Cheap to clone.
 #[derive(Clone)]
 pub struct JobPool {
-    inner: Arc<Inner>,
+    pub(super) inner: Arc<Inner>,
 }
 
 impl std::fmt::Debug for JobPool {
@@ -194,6 +229,8 @@ impl JobPool {
                 lease,
                 claim_loop: Mutex::new(None),
                 heartbeat: Mutex::new(Some(heartbeat)),
+                pruner: Mutex::new(None),
+                timeout_ms: AtomicU64::new(0),
             }),
         })
     }
@@ -298,6 +335,10 @@ impl JobPool {
 
     /// Runs CPU-heavy work synchronously for a request; [`Error::Full`] (503 + Retry-After)
     /// when the pool is full. A panic in `f` becomes [`Error::Worker`] (a 500).
+    ///
+    /// The work is stopped (at its next `numeric::stop::check`, within ~100 ms for the cores)
+    /// when it runs longer than [`JobPool::set_timeout`] ([`Error::Stopped`]), or when the
+    /// request is dropped (its client went away): the worker is then free for others.
     pub async fn run<T: Send + 'static>(
         &self,
         f: impl FnOnce() -> T + Send + 'static,
@@ -314,14 +355,32 @@ impl JobPool {
                 .map_err(|e| Error::Worker(e.to_string()))?
         };
         let inner2 = inner.clone();
-        tokio::task::spawn_blocking(move || {
+        let stop = Arc::new(AtomicBool::new(false));
+        // The request's future dropped (client gone): stop the work it no longer waits for.
+        let _stop_on_drop = SetOnDrop(stop.clone());
+        let flag = stop.clone();
+        let work = tokio::task::spawn_blocking(move || {
             // Permits live with the work, not with the (cancellable) request future.
             let _permits = (admitted, worker);
             let _running = Count::up(&inner2.running);
-            f()
-        })
-        .await
-        .map_err(|e| Error::Worker(format!("worker failed: {e}")))
+            numeric::stop::run(Arc::new(move || flag.load(Ordering::Relaxed)), f)
+        });
+        tokio::pin!(work);
+        let limit = inner.timeout();
+        let joined = tokio::select! {
+            done = &mut work => done,
+            () = sleep_or_forever(limit) => {
+                stop.store(true, Ordering::Relaxed);
+                work.await
+            }
+        };
+        match joined {
+            Ok(Ok(v)) => Ok(v),
+            Ok(Err(numeric::stop::Stopped)) => Err(Error::Stopped {
+                after: limit.unwrap_or_default(),
+            }),
+            Err(e) => Err(Error::Worker(format!("worker failed: {e}"))),
+        }
     }
 
     /// In-process long work: records a job and returns its id at once (answer
@@ -360,12 +419,13 @@ impl JobPool {
                         }
                         let p = progress.clone();
                         let inner2 = inner.clone();
+                        let limit = inner.timeout();
                         let work = tokio::task::spawn_blocking(move || {
                             let _permits = (admitted, worker);
                             let _running = Count::up(&inner2.running);
-                            f(&p)
+                            stoppable(&p, limit, |p| f(p))
                         });
-                        Some(watch_job(&inner.store, &job_id, &progress, work).await)
+                        Some(watch_job(&inner.store, &job_id, &progress, work, limit).await)
                     }
                 },
             };
@@ -393,23 +453,38 @@ impl JobPool {
         })
     }
 
-    /// Jobs newest first (`state` `queued`, `running`, `done`, `failed` or `cancelled`; `kind`
-    /// as submitted), at most `limit`, with live progress for this instance's running ones.
+    /// One page of jobs, newest first (`state` `queued`, `running`, `done`, `failed` or
+    /// `cancelled`; `kind` as submitted), at most `limit`, after `after` (the
+    /// [`JobPage::next`] of the previous page), with live progress for this instance's
+    /// running ones; results only `with_result`.
     pub async fn list(
         &self,
         state: Option<&str>,
         kind: Option<&str>,
         limit: usize,
-    ) -> anyhow::Result<Vec<JobStatus>> {
-        let recs = self.inner.store.list_jobs(state, kind, limit).await?;
+        after: Option<(i64, &str)>,
+        with_result: bool,
+    ) -> anyhow::Result<JobPage> {
+        let mut recs = self
+            .inner
+            .store
+            .list_jobs(state, kind, limit + 1, after, with_result)
+            .await?;
+        let more = recs.len() > limit;
+        recs.truncate(limit);
+        let next = recs
+            .last()
+            .filter(|_| more)
+            .map(|r| (r.created_at_ms, r.id.clone()));
         let live = self.lock_live();
-        Ok(recs
+        let jobs = recs
             .into_iter()
             .map(|r| {
                 let p = live.get(&r.id).map(|p| p.get());
                 JobStatus::of(r, p)
             })
-            .collect())
+            .collect();
+        Ok(JobPage { jobs, next })
     }
 
     fn lock_live(&self) -> std::sync::MutexGuard<'_, HashMap<String, Arc<Progress>>> {
@@ -454,6 +529,15 @@ impl JobPool {
         if let Some(t) = self
             .inner
             .claim_loop
+            .lock()
+            .unwrap_or_else(|p| p.into_inner())
+            .take()
+        {
+            t.abort();
+        }
+        if let Some(t) = self
+            .inner
+            .pruner
             .lock()
             .unwrap_or_else(|p| p.into_inner())
             .take()

@@ -15,6 +15,7 @@ use crate::store::{JobRecord, Store};
 pub struct Progress {
     bits: AtomicU64,
     cancelled: AtomicBool,
+    timed_out: AtomicBool,
     gate: Option<Gate>,
 }
 
@@ -59,13 +60,37 @@ impl Progress {
         self.gate.as_ref().map(|g| g.id.as_str())
     }
 
-    /// True once a client cancelled the job (`DELETE /v1/jobs/{id}` on any instance).
+    /// True once the job must stop: a client cancelled it (`DELETE /v1/jobs/{id}` on any
+    /// instance) or it ran longer than `--job-timeout` ([`Progress::timed_out`]).
     pub fn is_cancelled(&self) -> bool {
         self.cancelled.load(Ordering::Relaxed)
     }
 
+    /// True when the job was stopped because it ran longer than `--job-timeout`.
+    pub fn timed_out(&self) -> bool {
+        self.timed_out.load(Ordering::Relaxed)
+    }
+
     pub(super) fn cancel(&self) {
         self.cancelled.store(true, Ordering::Relaxed);
+    }
+
+    /// Stops the job for running longer than `timeout`.
+    pub(super) fn time_out(&self) {
+        self.timed_out.store(true, Ordering::Relaxed);
+        self.cancel();
+    }
+
+    /// The error sentence of a job its should-stop check ended.
+    pub(super) fn stop_sentence(&self, timeout: Option<Duration>) -> String {
+        match (self.timed_out(), timeout) {
+            (true, Some(t)) => format!(
+                "stopped: the job ran longer than the server's --job-timeout ({} s); \
+                 split the input or ask the operator for a longer timeout",
+                t.as_secs_f64()
+            ),
+            _ => "the job was cancelled".to_string(),
+        }
     }
 
     /// Claims the right to store the job's product (a model): `Err(Cancelled)` when the job

@@ -1,13 +1,16 @@
 //! The claim loop that takes stored jobs from the shared queue, and what every job does
-//! around its work: progress stored in its row, cancellation and takeover noticed, outcome
+//! around its work: progress stored in its row, cancellation, takeover and the time limit
+//! noticed and passed to the work as its should-stop check (`numeric::stop`), outcome
 //! recorded.
 
 use std::sync::Arc;
+use std::time::Duration;
 
 use serde_json::Value;
 use tokio::sync::OwnedSemaphorePermit;
 use tokio::task::JoinHandle;
 
+use super::limits::sleep_or_forever;
 use super::pool::{CLAIM_POLL, Count, Inner};
 use super::progress::{CANCEL_POLL, Gate, Progress};
 use crate::store::{ClaimedJob, Store};
@@ -19,6 +22,26 @@ pub(super) fn new_progress(inner: &Inner, id: &str) -> Arc<Progress> {
         id: id.to_string(),
         runtime: tokio::runtime::Handle::current(),
     }))
+}
+
+/// Runs a job's work `f` with the job's cancellation as its should-stop check: the cores it
+/// calls end at their next check once the job is cancelled or timed out, and the job's
+/// outcome is then the sentence saying which (`limit`: the `--job-timeout` it had).
+pub(super) fn stoppable(
+    progress: &Arc<Progress>,
+    limit: Option<Duration>,
+    f: impl FnOnce(&Progress) -> Result<Value, String>,
+) -> Result<Value, String> {
+    let p = progress.clone();
+    let check: crate::numeric::stop::Check = Arc::new(move || p.is_cancelled());
+    match crate::numeric::stop::run(check, || f(progress.as_ref())) {
+        Ok(outcome) if progress.timed_out() => {
+            // Work that looks at `is_cancelled` itself (training) ends with its own error.
+            outcome.and(Err(progress.stop_sentence(limit)))
+        }
+        Ok(outcome) => outcome,
+        Err(crate::numeric::stop::Stopped) => Err(progress.stop_sentence(limit)),
+    }
 }
 
 /// Records a job's outcome (`None`: it never ran) and forgets its live progress. A result
@@ -54,6 +77,9 @@ pub(super) async fn finish(
         .unwrap_or_else(|p| p.into_inner())
         .remove(id);
     inner.idle.notify_waiters();
+    // A worker is free: take the next queued job now rather than at the next poll (a deep
+    // queue of short jobs would otherwise run two per CLAIM_POLL on two workers).
+    inner.work.notify_one();
 }
 
 /// Takes stored jobs from the shared queue while this instance has a free worker (and room
@@ -114,35 +140,44 @@ async fn run_claimed(
     let inner2 = inner.clone();
     let kind = job.kind.clone();
     let input = job.input;
+    let limit = inner.timeout();
     let work = tokio::task::spawn_blocking(move || {
         let _permits = permits;
         let _running = Count::up(&inner2.running);
         match runner {
-            Some(run) => run(&input, &p),
+            Some(run) => stoppable(&p, limit, |p| run(&input, p)),
             None => Err(format!("this instance has no runner for job kind '{kind}'")),
         }
     });
-    let outcome = watch_job(&inner.store, &job.id, &progress, work).await;
+    let outcome = watch_job(&inner.store, &job.id, &progress, work, limit).await;
     finish(&inner, &job.id, &progress, Some(outcome)).await;
 }
 
 /// Waits for a job's worker, storing its progress every [`CANCEL_POLL`] (so every instance
 /// can answer it) and telling the worker to stop when the row says the job is no longer
 /// running here (cancelled through any instance, or taken over after this instance was
-/// judged gone). A panic in the worker becomes an error sentence.
+/// judged gone), or when it has run for `limit` (`--job-timeout`). A panic in the worker
+/// becomes an error sentence.
 pub(super) async fn watch_job(
     store: &Store,
     id: &str,
     progress: &Progress,
     work: JoinHandle<Result<Value, String>>,
+    limit: Option<Duration>,
 ) -> Result<Value, String> {
     tokio::pin!(work);
     let mut tick = tokio::time::interval(CANCEL_POLL);
     tick.tick().await;
+    let out_of_time = sleep_or_forever(limit);
+    tokio::pin!(out_of_time);
     loop {
         tokio::select! {
             done = &mut work => {
                 return done.unwrap_or_else(|e| Err(format!("the job crashed: {e}")));
+            }
+            () = &mut out_of_time, if !progress.is_cancelled() => {
+                tracing::warn!(job = %id, "job ran longer than --job-timeout: stopping it");
+                progress.time_out();
             }
             _ = tick.tick(), if !progress.is_cancelled() => {
                 if let Ok(false) = store.report_job_progress(id, progress.get()).await {

@@ -198,6 +198,7 @@ pub fn train(
         order.shuffle(&mut rng);
         let mut loss_sum = 0.0;
         for chunk in order.chunks(batch) {
+            crate::numeric::stop::check();
             xb.clear();
             yb.clear();
             for &i in chunk {

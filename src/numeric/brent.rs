@@ -24,6 +24,7 @@ pub fn minimize(
     let (a, b) = if a < b { (a, b) } else { (b, a) };
     let mut f = f;
     let x = a + CGOLD * (b - a);
+    super::stop::check();
     let fx = f(x);
     let search = Search {
         tol: |x: f64| tol_x * x.abs() + tol_x,
@@ -52,7 +53,13 @@ pub fn minimize_on_grid(
     max_iter: usize,
     rel_tol: f64,
 ) -> (f64, f64) {
-    let vals: Vec<f64> = grid.iter().map(|&x| f(x)).collect();
+    let vals: Vec<f64> = grid
+        .iter()
+        .map(|&x| {
+            super::stop::check();
+            f(x)
+        })
+        .collect();
     let (k, _) =
         vals.iter().enumerate().fold(
             (0, f64::INFINITY),
@@ -129,6 +136,7 @@ impl<T: Fn(f64) -> f64> Search<T> {
             } else {
                 x + tol1.copysign(d)
             };
+            super::stop::check();
             let fu = f(u);
             if fu <= fx {
                 if u >= x {

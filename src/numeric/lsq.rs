@@ -111,6 +111,7 @@ impl LeastSquares {
 
     /// As [`LeastSquares::solve`] but only columns with `allowed[i]` may enter.
     pub fn solve_masked(&self, allowed: &[bool]) -> Result<Solution, Error> {
+        super::stop::check();
         let n = self.n;
         let g = |i: usize, j: usize| {
             if i <= j {

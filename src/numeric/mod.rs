@@ -8,11 +8,13 @@
 //! - [`lsq`]: least squares that drop unidentifiable columns, under two named rank policies.
 //! - [`vec3`]: 3-vector helpers on `[f64; 3]`.
 //! - [`parallel`]: thread counts and the ways the cores split work over scoped threads.
+//! - [`stop`]: the should-stop check long work polls, so a cancelled job frees its worker.
 
 pub mod brent;
 pub mod bspline;
 pub mod lsq;
 pub mod parallel;
 pub mod penalty;
+pub mod stop;
 pub mod tridiag;
 pub mod vec3;

@@ -38,11 +38,17 @@ pub fn map_chunks<T: Sync, R: Send>(
         return vec![f(0, items)];
     }
     let f = &f;
+    let stop = &super::stop::current();
     std::thread::scope(|s| {
         let handles: Vec<_> = items
             .chunks(per)
             .enumerate()
-            .map(|(c, chunk)| s.spawn(move || f(c * per, chunk)))
+            .map(|(c, chunk)| {
+                s.spawn(move || {
+                    let _stop = super::stop::install(stop.clone());
+                    f(c * per, chunk)
+                })
+            })
             .collect();
         handles.into_iter().map(join_or_resume).collect()
     })
@@ -63,11 +69,17 @@ pub fn zip_chunks_mut<A: Sync, B: Send, R: Send>(
         return vec![f(input, output)];
     }
     let f = &f;
+    let stop = &super::stop::current();
     std::thread::scope(|s| {
         let handles: Vec<_> = input
             .chunks(in_per)
             .zip(output.chunks_mut(out_per))
-            .map(|(xc, yc)| s.spawn(move || f(xc, yc)))
+            .map(|(xc, yc)| {
+                s.spawn(move || {
+                    let _stop = super::stop::install(stop.clone());
+                    f(xc, yc)
+                })
+            })
             .collect();
         handles.into_iter().map(join_or_resume).collect()
     })
@@ -83,20 +95,29 @@ pub fn map_dynamic<T: Sync + Copy, R: Send>(
 ) -> Vec<R> {
     let threads = threads.clamp(1, items.len().max(1));
     if threads == 1 {
-        return items.iter().map(|&x| f(x)).collect();
+        return items
+            .iter()
+            .map(|&x| {
+                super::stop::check();
+                f(x)
+            })
+            .collect();
     }
     let next = AtomicUsize::new(0);
     let mut out: Vec<Option<R>> = (0..items.len()).map(|_| None).collect();
+    let stop = &super::stop::current();
     let collected: Vec<Vec<(usize, R)>> = std::thread::scope(|s| {
         let handles: Vec<_> = (0..threads)
             .map(|_| {
                 s.spawn(|| {
+                    let _stop = super::stop::install(stop.clone());
                     let mut mine = Vec::new();
                     loop {
                         let i = next.fetch_add(1, Ordering::Relaxed);
                         if i >= items.len() {
                             break;
                         }
+                        super::stop::check();
                         mine.push((i, f(items[i])));
                     }
                     mine
@@ -119,8 +140,12 @@ pub fn join<A: Send, B>(
     background: impl FnOnce() -> A + Send,
     foreground: impl FnOnce() -> B,
 ) -> (std::thread::Result<A>, B) {
+    let stop = super::stop::current();
     std::thread::scope(|s| {
-        let handle = s.spawn(background);
+        let handle = s.spawn(move || {
+            let _stop = super::stop::install(stop);
+            background()
+        });
         let b = foreground();
         (handle.join(), b)
     })
@@ -200,6 +225,10 @@ impl<T: Clone> Lockstep<T> {
         let mut spins = 0u32;
         while self.generation.load(Ordering::Acquire) == generation {
             if self.abandoned.load(Ordering::Acquire) {
+                if super::stop::requested() {
+                    // The other side was stopped (a cancelled job): stop too, quietly.
+                    super::stop::stop_now();
+                }
                 panic!("the other side of a lockstep exchange stopped");
             }
             spins = spins.wrapping_add(1);

@@ -227,6 +227,7 @@ pub fn coarse_to_fine(
     };
     // Stage 1: coarse VMD and screening.
     let v = vmd(x, &vp)?;
+    crate::numeric::stop::check();
     let (vmd_corr, vmd_strong) = screen(&v.modes, x, params.threshold);
     let x1 = sum_selected(&v.modes, &vmd_strong, n);
     // Stages 2-3 (EMD, wavelet) and stage 5 (refinement) both start from the VMD modes and
@@ -246,6 +247,7 @@ pub fn coarse_to_fine(
         for (a, b) in w.iter_mut().zip(sum_selected(&comps, &weak_e, n)) {
             *a += b;
         }
+        crate::numeric::stop::check();
         let level = params.wavelet_level.resolve(&w, &wav);
         let den = denoise(&w, &wav, Some(level));
         Ok((emd_corr, emd_strong, x2, den))
@@ -259,7 +261,8 @@ pub fn coarse_to_fine(
             .transpose()
     };
     let (early, refined) = parallel::join(stages_2_3, stage_5);
-    let (emd_corr, emd_strong, x2, den) = early.expect("EMD/wavelet thread panicked")?;
+    let (emd_corr, emd_strong, x2, den) =
+        early.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
     let refined = refined?;
     let x3 = den.signal;
     let x4: Vec<f64> = x2.iter().zip(&x3).map(|(a, b)| a + b).collect();
@@ -340,6 +343,7 @@ pub fn narrow_band_part(
         if !strong[k] {
             continue;
         }
+        crate::numeric::stop::check();
         if let Some((f, power)) = strongest_line(mode) {
             if power > threshold && lines.iter().all(|&(_, g)| (g - f).abs() >= 2.0 / n as f64) {
                 lines.push((k, f));
@@ -360,6 +364,7 @@ pub fn narrow_band_part(
         let mut h: Vec<Vec<f64>> = Vec::with_capacity(lines.len());
         let mut edf = vec![0.0; lines.len()];
         for (i, &(k, _)) in lines.iter().enumerate() {
+            crate::numeric::stop::check();
             let mut r = x.to_vec();
             for (j, mode) in modes.iter().enumerate() {
                 if strong[j] && j != k {
@@ -383,6 +388,7 @@ pub fn narrow_band_part(
         {
             let l = smooth(&sub(x, &total(&h)))?;
             for i in 0..h.len() {
+                crate::numeric::stop::check();
                 let mut r = sub(x, &l.signal);
                 for (j, hj) in h.iter().enumerate() {
                     if j != i {
@@ -398,7 +404,8 @@ pub fn narrow_band_part(
         let l = smooth(&sub(x, &hsum))?;
         Ok((hsum, l, edf))
     });
-    let without = without.expect("smoother thread panicked")?;
+    // A panic (or a stop) on the smoother's thread goes on unwinding here, payload kept.
+    let without = without.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
     // A carrier that cannot be fitted (e.g. a singular envelope design on a tiny record)
     // only means there is no narrow-band part: the smoother alone is the answer.
     let Ok((hsum, l, edf)) = with else {

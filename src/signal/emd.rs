@@ -205,6 +205,7 @@ pub fn emd(x: &[f64], params: &EmdParams) -> Result<EmdResult, Error> {
     let mut sifts = Vec::new();
     let scale = x.iter().fold(0.0f64, |m, v| m.max(v.abs()));
     while imfs.len() < max_imfs {
+        crate::numeric::stop::check();
         let (maxs, mins) = extrema(&residue);
         if maxs.len() + mins.len() < 3 || residue.iter().all(|v| v.abs() <= 1e-14 * scale) {
             break;
@@ -215,6 +216,7 @@ pub fn emd(x: &[f64], params: &EmdParams) -> Result<EmdResult, Error> {
         // Extrema of the current h (each sift's are reused by the next one's envelopes).
         let (mut hmax, mut hmin) = (maxs, mins);
         for it in 0..params.max_sift {
+            crate::numeric::stop::check();
             let Some((up, lo, wrong_signs)) = envelopes(&h, &hmax, &hmin, params.mirrored_extrema)
             else {
                 break;

@@ -117,6 +117,9 @@ pub fn robust_sigma(r: &[f64]) -> f64 {
     1.4826 * median(&mut v)
 }
 
+/// Samples between two looks at the should-stop check in [`neighbour_median`] (1-D).
+const STOP_EVERY: usize = 1 << 16;
+
 /// The median of each sample's neighbours, the sample itself left out (mm): 5 × 5 on a
 /// `(nu, nv)` grid (k = iv·nu + iu; windows clipped at the edges), ±4 samples in 1-D.
 pub fn neighbour_median(x: &[f64], grid: Option<(usize, usize)>) -> Vec<f64> {
@@ -125,6 +128,9 @@ pub fn neighbour_median(x: &[f64], grid: Option<(usize, usize)>) -> Vec<f64> {
         Some((nu, nv)) => (0..nv)
             .flat_map(|iv| (0..nu).map(move |iu| (iu, iv)))
             .map(|(iu, iv)| {
+                if iu == 0 {
+                    crate::numeric::stop::check();
+                }
                 buf.clear();
                 for jv in iv.saturating_sub(HALF_2D)..(iv + HALF_2D + 1).min(nv) {
                     for ju in iu.saturating_sub(HALF_2D)..(iu + HALF_2D + 1).min(nu) {
@@ -138,6 +144,9 @@ pub fn neighbour_median(x: &[f64], grid: Option<(usize, usize)>) -> Vec<f64> {
             .collect(),
         None => (0..x.len())
             .map(|k| {
+                if k % STOP_EVERY == 0 {
+                    crate::numeric::stop::check();
+                }
                 buf.clear();
                 let hi = (k + HALF_1D + 1).min(x.len());
                 buf.extend(x[k.saturating_sub(HALF_1D)..k].iter());
@@ -214,6 +223,7 @@ pub fn robust<T>(
     let mut rounds = 0;
     loop {
         rounds += 1;
+        crate::numeric::stop::check();
         let out = decompose(&y)?;
         let sys = systematic(&out);
         let moved = flagged

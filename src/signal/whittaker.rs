@@ -207,6 +207,7 @@ pub fn whittaker(x: &[f64], d: usize, lambda: Option<f64>) -> Result<Smoothed, E
         }
         None => gcv_lambda_with(x, d, &e),
     };
+    crate::numeric::stop::check();
     let signal = solve_banded(x, d, lam);
     let edf = e.iter().map(|ek| 1.0 / (1.0 + lam * ek)).sum();
     Ok(Smoothed {

@@ -84,6 +84,9 @@ impl TrainJob {
             .iter()
             .enumerate()
             .map(|(i, s)| {
+                if i % 4096 == 0 {
+                    crate::numeric::stop::check();
+                }
                 solver
                     .solve(self.r, s.cl, &s.cc)
                     .map_err(|e| geometry::Error::InSegment {

@@ -14,6 +14,10 @@
 //! input) belongs to its submitter from the start. Every later write by the worker (progress,
 //! commit gate, outcome) is conditional on `owner` still being this instance, so a worker
 //! whose job was taken away (its instance was judged gone) can no longer store anything.
+//!
+//! Bounded storage (issue 25): a job's input is dropped (`NULL`) as soon as it ends, and
+//! [`Store::prune_jobs`] deletes the jobs that ended longer ago than the retention, so the
+//! table holds the unfinished jobs' inputs and the retained jobs' results, nothing more.
 
 use anyhow::{Context, Result};
 use serde::Serialize;
@@ -61,6 +65,17 @@ pub struct ClaimedJob {
     pub kind: String,
     /// Its stored input (JSON text).
     pub input: String,
+}
+
+/// What the jobs table holds ([`Store::job_bytes`]).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
+pub struct JobBytes {
+    /// Job rows.
+    pub jobs: u64,
+    /// Bytes of stored inputs (only unfinished jobs keep theirs).
+    pub input_bytes: u64,
+    /// Bytes of stored results.
+    pub result_bytes: u64,
 }
 
 /// What [`Store::cancel_job`] found.
@@ -250,7 +265,7 @@ impl Store {
         let now = now_ms();
         let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = $1, progress = $2, result = $3, error = $4, updated_at = $5, \
-             finished_at = $6 WHERE id = $7 AND owner = $8 AND state IN {UNFINISHED}"
+             finished_at = $6, input = NULL WHERE id = $7 AND owner = $8 AND state IN {UNFINISHED}"
         )))
         .bind(state.to_string())
         .bind(progress)
@@ -273,7 +288,8 @@ impl Store {
         let now = now_ms();
         let n = sqlx::query(
             "UPDATE jobs SET state = 'cancelled', error = 'cancelled by a client', \
-             updated_at = $1, finished_at = $2 WHERE id = $3 AND state IN ('queued', 'running')",
+             updated_at = $1, finished_at = $2, input = NULL \
+             WHERE id = $3 AND state IN ('queued', 'running')",
         )
         .bind(now)
         .bind(now)
@@ -313,19 +329,28 @@ impl Store {
     }
 
     /// Jobs newest first, optionally only those in `state` (`running` includes `storing`)
-    /// and of `kind`, at most `limit`.
+    /// and of `kind`, at most `limit`, starting after `after` (the `(created_at, id)` of the
+    /// last job of the previous page). `with_result`: also read each job's result (else
+    /// `result` is `None`, and the stored results are not read at all).
     pub async fn list_jobs(
         &self,
         state: Option<&str>,
         kind: Option<&str>,
         limit: usize,
+        after: Option<(i64, &str)>,
+        with_result: bool,
     ) -> Result<Vec<JobRecord>> {
         let states: Vec<String> = match state {
             Some("running") => vec!["running".into(), "storing".into()],
             Some(s) => vec![s.to_string()],
             None => vec![],
         };
-        let mut sql = format!("SELECT {COLUMNS} FROM jobs WHERE 1 = 1");
+        let columns = if with_result {
+            COLUMNS.to_string()
+        } else {
+            COLUMNS.replacen("result", "CAST(NULL AS TEXT)", 1)
+        };
+        let mut sql = format!("SELECT {columns} FROM jobs WHERE 1 = 1");
         let mut arg = 0;
         if !states.is_empty() {
             let marks: Vec<String> = states
@@ -341,6 +366,14 @@ impl Store {
             arg += 1;
             sql.push_str(&format!(" AND kind = ${arg}"));
         }
+        if after.is_some() {
+            sql.push_str(&format!(
+                " AND (created_at < ${} OR (created_at = ${} AND id < ${}))",
+                arg + 1,
+                arg + 2,
+                arg + 3
+            ));
+        }
         sql.push_str(&format!(
             " ORDER BY created_at DESC, id DESC LIMIT {}",
             limit.min(10_000)
@@ -352,7 +385,71 @@ impl Store {
         if let Some(k) = kind {
             q = q.bind(k.to_string());
         }
+        if let Some((at, id)) = after {
+            q = q.bind(at).bind(at).bind(id.to_string());
+        }
         let rows = q.fetch_all(&self.db).await?;
         rows.iter().map(record).collect()
+    }
+
+    /// Deletes the jobs that ended (done, failed, cancelled) more than `retention` ago, and
+    /// drops the input of every ended job still holding one (jobs failed by an instance's
+    /// takeover). Returns how many jobs were deleted. Idempotent, so any number of instances
+    /// sharing the database may run it. After a deletion, on PostgreSQL the table is vacuumed
+    /// (plain `VACUUM`, no lock beyond a normal write's) so the space is reused at once; on
+    /// SQLite the write-ahead log is checkpointed and truncated.
+    pub async fn prune_jobs(&self, retention: std::time::Duration) -> Result<u64> {
+        let cutoff =
+            now_ms().saturating_sub(i64::try_from(retention.as_millis()).unwrap_or(i64::MAX));
+        let deleted = sqlx::query(
+            "DELETE FROM jobs WHERE state IN ('done', 'failed', 'cancelled') \
+             AND COALESCE(finished_at, updated_at) < $1",
+        )
+        .bind(cutoff)
+        .execute(&self.db)
+        .await
+        .context("cannot delete old jobs")?
+        .rows_affected();
+        sqlx::query(
+            "UPDATE jobs SET input = NULL \
+             WHERE state IN ('done', 'failed', 'cancelled') AND input IS NOT NULL",
+        )
+        .execute(&self.db)
+        .await
+        .context("cannot drop the inputs of ended jobs")?;
+        if deleted > 0 {
+            match self.backend() {
+                // VACUUM may not run in a transaction block: the simple query protocol.
+                super::Backend::Postgres => sqlx::raw_sql("VACUUM jobs")
+                    .execute(&self.db)
+                    .await
+                    .context("cannot vacuum the jobs table")?,
+                // The freed pages are reused by later rows; the WAL, which only shrinks when
+                // truncated, is brought back to empty (a busy reader just postpones it).
+                super::Backend::Sqlite => sqlx::raw_sql("PRAGMA wal_checkpoint(TRUNCATE)")
+                    .execute(&self.db)
+                    .await
+                    .context("cannot checkpoint the write-ahead log")?,
+            };
+        }
+        Ok(deleted)
+    }
+
+    /// How many jobs the table holds and the bytes of their stored inputs and results.
+    pub async fn job_bytes(&self) -> Result<JobBytes> {
+        let row = sqlx::query(
+            "SELECT COUNT(*), CAST(COALESCE(SUM(LENGTH(input)), 0) AS BIGINT), \
+             CAST(COALESCE(SUM(LENGTH(result)), 0) AS BIGINT) FROM jobs",
+        )
+        .fetch_one(&self.db)
+        .await
+        .context("cannot measure the jobs table")?;
+        let n =
+            |i: usize| -> Result<u64> { Ok(u64::try_from(row.try_get::<i64, _>(i)?).unwrap_or(0)) };
+        Ok(JobBytes {
+            jobs: n(0)?,
+            input_bytes: n(1)?,
+            result_bytes: n(2)?,
+        })
     }
 }

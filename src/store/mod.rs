@@ -26,7 +26,7 @@ pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
 pub use database::{Backend, DatabaseReport, PoolReport, Store};
 pub use instances::{LeaseReport, Reaped};
 pub use iso230::Iso230Run;
-pub use jobs::{CancelOutcome, ClaimedJob, JobRecord};
+pub use jobs::{CancelOutcome, ClaimedJob, JobBytes, JobRecord};
 pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};
 pub use model_versions::{ModelVersion, ModelVersions, Rollback};

@@ -300,7 +300,7 @@ impl ModelStore {
                 let fence = super::instances::lease_held_sql(self.backend, "$5");
                 let n = sqlx::query(sqlx::AssertSqlSafe(format!(
                     "UPDATE jobs SET state = 'done', progress = 1.0, result = $1, error = NULL, \
-                     updated_at = $2, finished_at = $3 \
+                     input = NULL, updated_at = $2, finished_at = $3 \
                      WHERE id = $4 AND owner = $5 AND state = 'storing' AND {fence}"
                 )))
                 .bind(result.to_string())

@@ -99,6 +99,7 @@ impl SmoothingSpline3 {
         let n_obs = data.nodes.len() as f64;
         let mut best: Option<(f64, f64, DMatrix<f64>, f64)> = None;
         for step in 0..=24 {
+            crate::numeric::stop::check();
             let lambda = 10f64.powf(-6.0 + step as f64 / 2.0);
             let a = &gram + &pen * (lambda * scale) + DMatrix::identity(m, m) * ridge;
             let Some(chol) = a.cholesky() else { continue };

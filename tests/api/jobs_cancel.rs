@@ -302,3 +302,121 @@ async fn cancel_through_another_instance() {
     tokio::time::sleep(Duration::from_millis(100)).await;
     assert_eq!(job_json(&a, &id).await["state"], "cancelled");
 }
+
+/// `n` samples (mm): two tones, a slow trend and seeded noise.
+fn long_signal(n: usize) -> Vec<f64> {
+    let mut s: u64 = 0x2545_f491_4f6c_dd1d;
+    (0..n)
+        .map(|i| {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            let t = i as f64;
+            let noise = ((s >> 11) as f64 / (1u64 << 53) as f64 - 0.5) * 0.002;
+            0.01 * (t * 0.002).sin() + 0.003 * (t * 0.21).sin() + 1e-8 * t + noise
+        })
+        .collect()
+}
+
+/// Polls the job until it is running and its worker has read its input (progress ≥ 0.05),
+/// or 60 s.
+async fn wait_computing(app: &TestApp, id: &str) {
+    let t0 = Instant::now();
+    loop {
+        let j = job_json(app, id).await;
+        if j["state"] == "running" && j["progress"].as_f64().unwrap_or(0.0) >= 0.05 {
+            return;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(60),
+            "job {id} never started computing: {j}"
+        );
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
+
+/// Issue 25 item 4: both workers of a 2-worker pool on 1,000,000-sample decompositions;
+/// cancelling them frees the workers, so a synchronous request sent right after is served
+/// within 2 s (without the stop it waits for a whole decomposition: tens of seconds).
+async fn cancel_frees_the_worker(app: TestApp) {
+    let pool = app.server().state().jobs.clone();
+    assert_eq!(pool.worker_count(), 2);
+    let body = json!({"signal": long_signal(1_000_000)});
+    let mut ids = Vec::new();
+    for _ in 0..2 {
+        let r = app.post_json("/v1/decompose", &body).await;
+        assert_eq!(r.status(), 202);
+        ids.push(json_job_id(r).await);
+    }
+    for id in &ids {
+        wait_computing(&app, id).await;
+    }
+    tokio::time::sleep(Duration::from_millis(300)).await;
+    assert_eq!(pool.running(), 2, "both workers busy before the cancel");
+    let t0 = Instant::now();
+    for id in &ids {
+        assert_eq!(app.delete(&format!("/v1/jobs/{id}")).await.status(), 200);
+    }
+    let small = json!({"signal": long_signal(2_000), "method": "wavelet"});
+    let r = app.post_json("/v1/decompose", &small).await;
+    let served = t0.elapsed();
+    assert_eq!(r.status(), 200);
+    while pool.running() > 0 && t0.elapsed() < Duration::from_secs(30) {
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    let freed = t0.elapsed();
+    println!(
+        "cancel: two 1,000,000-sample decompositions cancelled; a sync request was served \
+         {served:?} after the first DELETE, both workers free after {freed:?} (goal < 2 s)"
+    );
+    assert!(served < Duration::from_secs(2), "served after {served:?}");
+    assert!(
+        freed < Duration::from_secs(2),
+        "workers freed after {freed:?}"
+    );
+    for id in &ids {
+        let j = job_json(&app, id).await;
+        assert_eq!(j["state"], "cancelled", "{j}");
+        assert_eq!(j["result"], Value::Null, "{j}");
+    }
+}
+on_both_backends!(cancel_frees_the_worker);
+
+/// `--job-timeout` ends runaway work: a job ends `failed` naming the limit, a synchronous
+/// request gets 503 naming it, and the workers are free again.
+async fn job_timeout_stops_runaway_work(app: TestApp) {
+    let pool = app.server().state().jobs.clone();
+    let t0 = Instant::now();
+    let r = app
+        .post_json("/v1/decompose", &json!({"signal": long_signal(1_000_000)}))
+        .await;
+    assert_eq!(r.status(), 202);
+    let id = json_job_id(r).await;
+    let j = wait_state(&app, &id, "failed").await;
+    println!(
+        "timeout: the 1,000,000-sample job failed {:?} after it was posted",
+        t0.elapsed()
+    );
+    assert!(
+        j["error"].as_str().unwrap().contains("--job-timeout"),
+        "{j}"
+    );
+    assert_eq!(j["result"], Value::Null, "{j}");
+
+    let t1 = Instant::now();
+    let r = app
+        .post_json("/v1/decompose", &json!({"signal": long_signal(250_000)}))
+        .await;
+    println!(
+        "timeout: the 250,000-sample sync request was answered in {:?}",
+        t1.elapsed()
+    );
+    assert_problem(r, 503, &["--job-timeout"]).await;
+    let t2 = Instant::now();
+    while pool.running() > 0 && t2.elapsed() < Duration::from_secs(5) {
+        tokio::time::sleep(Duration::from_millis(5)).await;
+    }
+    assert_eq!(pool.running(), 0, "a stopped request kept its worker");
+}
+on_both_backends!(job_timeout_stops_runaway_work, |c| c.job_timeout =
+    std::time::Duration::from_millis(700));

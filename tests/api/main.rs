@@ -24,6 +24,7 @@ mod iso230_comp;
 mod iso230_trace;
 mod jobs_cancel;
 mod jobs_models;
+mod jobs_storage;
 mod resources;
 mod scale_out;
 mod service;

@@ -173,6 +173,7 @@ pub fn vmd(x: &[f64], params: &VmdParams) -> Result<VmdResult, Error> {
     if params.dc {
         omega[0] = 0.0;
     }
+    crate::numeric::stop::check();
     let power: Vec<f64> = f_hat.iter().map(|c| c.norm_sqr()).collect();
     let (c, iterations, u_diff) = if m >= F32_MIN_BINS {
         admm::<f32>(kernel_f32, &power, &freqs, &mut omega, params)
@@ -189,6 +190,7 @@ pub fn vmd(x: &[f64], params: &VmdParams) -> Result<VmdResult, Error> {
     let mut buf = inv.make_input_vec();
     let mut out = inv.make_output_vec();
     for k in 0..k_modes {
+        crate::numeric::stop::check();
         for b in 0..m {
             buf[b] = u[b * k_modes + k];
         }
@@ -258,6 +260,7 @@ pub fn mean_instantaneous_frequency(mode: &[f64]) -> f64 {
 pub fn choose_k(x: &[f64], params: &VmdParams, k_max: usize) -> Result<usize, Error> {
     let mut prev_top = -1.0;
     for k in 2..=k_max.max(2) {
+        crate::numeric::stop::check();
         let p = VmdParams {
             k: Some(k),
             ..params.clone()

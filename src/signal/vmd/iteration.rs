@@ -210,6 +210,9 @@ fn iterate<C: Real>(
     // ‖û_k^n‖² of the iterate before the sweep (the sweep returns that of the new one).
     let mut prev_den = vec![0.0; k_modes];
     while iterations < params.max_iter.saturating_sub(1) && u_diff > params.tol {
+        // A stopped job ends here; a lockstep partner waiting at the exchange sees this
+        // side's guard abandon it and stops too.
+        crate::numeric::stop::check();
         let mut parts: Vec<Sums> = pieces
             .iter_mut()
             .map(|bins| {

@@ -86,6 +86,7 @@ pub fn wavedec(x: &[f64], w: &Wavelet, level: usize) -> Vec<Vec<f64>> {
     let mut details = Vec::with_capacity(level);
     let mut a = x.to_vec();
     for _ in 0..level {
+        crate::numeric::stop::check();
         let (ca, cd) = dwt(&a, w);
         details.push(cd);
         a = ca;
@@ -101,6 +102,7 @@ pub fn wavedec(x: &[f64], w: &Wavelet, level: usize) -> Vec<Vec<f64>> {
 pub fn waverec(coeffs: &[Vec<f64>], w: &Wavelet) -> Vec<f64> {
     let mut a = coeffs[0].clone();
     for d in &coeffs[1..] {
+        crate::numeric::stop::check();
         if a.len() == d.len() + 1 {
             a.pop();
         }

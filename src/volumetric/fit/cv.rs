@@ -124,6 +124,7 @@ pub(super) fn score(
     let mut params = 0usize;
     let mut held = vec![false; data.nodes.len()];
     for set in sets {
+        crate::numeric::stop::check();
         held.iter_mut().for_each(|h| *h = false);
         set.iter().for_each(|&i| held[i] = true);
         let train: Vec<usize> = (0..data.nodes.len()).filter(|&i| !held[i]).collect();

@@ -105,7 +105,13 @@ pub fn fit(data: &VolumetricData, options: &FitOptions) -> Result<VolumetricMap,
                 .collect::<Vec<ModelScore>>()
         },
     );
-    scores.extend(slow_scores.map_err(|_| Error::Fit("cross-validation thread panicked".into()))?);
+    let slow_scores = match slow_scores {
+        Ok(s) => s,
+        // a stopped fit (cancelled, or out of time) ends as a stop, not as a fit error
+        Err(p) if p.is::<crate::numeric::stop::Stopped>() => std::panic::resume_unwind(p),
+        Err(_) => return Err(Error::Fit("cross-validation thread panicked".into())),
+    };
+    scores.extend(slow_scores);
     scores.sort_by_key(|s| ModelKind::CONCRETE.iter().position(|&k| k == s.model));
     let chosen = match options.model {
         ModelKind::Auto => choose(&scores).unwrap_or(ModelKind::Kinematic),
