@@ -22,7 +22,7 @@ use super::jobs::follow;
 /// warning goes to stderr as `warning: FILE: ...`, then one summary line. A program that is
 /// not UTF-8 is read as Latin-1 (Windows posts) and written back in Latin-1.
 #[derive(Debug, clap::Args)]
-#[command(after_help = "Examples:\n  \
+#[command(after_help = "Example:\n  \
     truecut program --server http://127.0.0.1:8080 --machine m1 part.nc > part_comp.nc\n  \
     truecut program --machine m1 --contour --work-offset G54=300,150,100 --tool-length 1=150 part.nc -o part_comp.nc\n  \
     cat part.nc | truecut program --machine m1 - > part_comp.nc")]

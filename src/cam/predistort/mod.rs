@@ -45,18 +45,17 @@ mod limits;
 mod measure;
 mod notes;
 mod reference;
+mod run;
 
 use std::collections::BTreeMap;
 
-use crate::motion::gcode::{Block, Feed, Motion, Pose};
-use crate::motion::{
-    self, Kinematics, Machine, Program, contour_error, interpolate, predict_program,
-    simulate_machine,
-};
+use crate::motion::gcode::{Block, Motion};
+use crate::motion::{self, Kinematics, Machine, Program, contour_error, predict_program};
 pub use corners::{GOUGE_LIMIT_MM, TIME_BUDGET};
 use limits::{junction_limits, refuse_sharp_junctions, turns_above};
 use notes::{corner_notes, refusal_notes, residual_notes};
 use reference::{Reference, correction, smooth};
+use run::{Eval, Run, ceil_to, norm, round_to, sub};
 
 /// Longest program (interpolation periods of the original and of every iterate) the
 /// pre-distortion runs: 2,000,000 periods, 33 min of machining at the default 1 ms period.
@@ -163,196 +162,6 @@ pub enum Error {
     /// The program or the machine uses something the pre-distortion does not handle yet.
     #[error("{0}")]
     Unsupported(String),
-}
-
-/// One simulation of a candidate set of points.
-struct Eval {
-    feeds: Vec<f64>,
-    /// Line tag (point index + 1) of every period of the candidate's command.
-    line: Vec<u32>,
-    /// Interpolation periods of the candidate's own command.
-    periods: usize,
-    /// Simulated axes, padded (at rest at the end) to at least the original's periods.
-    actual: Vec<Vec<f64>>,
-    feet: Vec<(f64, [f64; 3])>,
-    /// RMS and max of the foot distances, mm.
-    rms: f64,
-    max: f64,
-}
-
-fn round_to(x: f64, decimals: i32) -> f64 {
-    let s = 10f64.powi(decimals);
-    (x * s).round() / s
-}
-
-fn ceil_to(x: f64, decimals: i32) -> f64 {
-    let s = 10f64.powi(decimals);
-    // Guard against x·s landing a hair above an integer by rounding error.
-    let y = x * s;
-    let r = y.round();
-    if (y - r).abs() <= 1e-9 * y.abs().max(1.0) {
-        r / s
-    } else {
-        y.ceil() / s
-    }
-}
-
-fn sub(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
-}
-
-fn norm(a: [f64; 3]) -> f64 {
-    (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
-}
-
-/// The G01 program through `pts` from `start` at `feeds` (mm/min); block `k` carries line
-/// `k + 1` so that the interpolation's line tags name the point. A run of points whose source
-/// line (`lines`) is in `kept` is replaced by that line's original blocks (rapids, canned
-/// cycles: written as programmed), tagged with the run's last point, the first starting at
-/// the point before.
-fn program_of(
-    start: [f64; 3],
-    pts: &[[f64; 3]],
-    feeds: &[f64],
-    lines: &[usize],
-    kept: &BTreeMap<usize, Vec<Block>>,
-) -> Program {
-    let mut blocks = Vec::with_capacity(pts.len());
-    let mut prev = start;
-    let mut k = 0;
-    while k < pts.len() {
-        if let Some(orig) = lines.get(k).and_then(|l| kept.get(l)) {
-            let mut j = k;
-            while j + 1 < pts.len() && lines.get(j + 1) == lines.get(k) {
-                j += 1;
-            }
-            for (i, b) in orig.iter().enumerate() {
-                let mut b = b.clone();
-                if i == 0 {
-                    b.start.xyz = prev;
-                }
-                b.line = j + 1;
-                prev = b.end.xyz;
-                blocks.push(b);
-            }
-            k = j + 1;
-            continue;
-        }
-        blocks.push(Block {
-            line: k + 1,
-            motion: Motion::Linear,
-            start: Pose {
-                xyz: prev,
-                a: 0.0,
-                c: 0.0,
-            },
-            end: Pose {
-                xyz: pts[k],
-                a: 0.0,
-                c: 0.0,
-            },
-            feed: Feed::PerMinute(feeds[k]),
-            rtcp: false,
-        });
-        prev = pts[k];
-        k += 1;
-    }
-    Program {
-        blocks,
-        first_a_line: None,
-        first_c_line: None,
-    }
-}
-
-/// The fixed data of one pre-distortion run.
-struct Run<'a> {
-    machine: &'a Machine,
-    period_s: f64,
-    reference: Reference,
-    start: [f64; 3],
-    /// Programmed feed of each point's block, mm/min.
-    base_feed: Vec<f64>,
-    /// Chord length of each point's segment on the undistorted polyline, mm.
-    base_len: Vec<f64>,
-    /// Arc parameter of each point on the reference, mm.
-    sigma: Vec<f64>,
-    /// Periods of the original interpolation.
-    orig_periods: usize,
-    /// Source line of each point.
-    lines: Vec<usize>,
-    /// Lines written as programmed (see [`predistort_keeping`]) and their original blocks.
-    kept: BTreeMap<usize, Vec<Block>>,
-}
-
-impl Run<'_> {
-    /// Feeds (mm/min) of the segments ending at `pts`: the programmed feed scaled by the
-    /// chord's length ratio, not below the programmed feed, not above the `max_vel` of any
-    /// axis (unless the programmed feed already is), rounded up to [`FEED_DECIMALS`].
-    fn feeds(&self, pts: &[[f64; 3]]) -> Vec<f64> {
-        self.feeds_with(pts, &self.base_feed)
-    }
-
-    /// [`Run::feeds`] with the programmed feeds `base_feed` (mm/min) in place of the run's.
-    fn feeds_with(&self, pts: &[[f64; 3]], base_feed: &[f64]) -> Vec<f64> {
-        let mut prev = self.start;
-        let mut out = Vec::with_capacity(pts.len());
-        for (k, p) in pts.iter().enumerate() {
-            let d = sub(*p, prev);
-            let len = norm(d);
-            let base = base_feed[k];
-            let mut f = base;
-            if self.base_len[k] > 0.0 && len > self.base_len[k] {
-                f = base * len / self.base_len[k];
-                for (i, ax) in self.machine.axes.iter().enumerate().take(3) {
-                    if d[i].abs() > 1e-12 {
-                        f = f.min(60.0 * ax.limits.max_vel * len / d[i].abs());
-                    }
-                }
-                f = f.max(base);
-            }
-            out.push(ceil_to(f, FEED_DECIMALS));
-            prev = *p;
-        }
-        out
-    }
-
-    /// Interpolates and simulates the points as the service would.
-    fn evaluate(&self, pts: &[[f64; 3]]) -> Result<Eval, Error> {
-        self.evaluate_with(pts, &self.base_feed)
-    }
-
-    /// [`Run::evaluate`] with the programmed feeds `base_feed` (mm/min) in place of the run's.
-    fn evaluate_with(&self, pts: &[[f64; 3]], base_feed: &[f64]) -> Result<Eval, Error> {
-        let feeds = self.feeds_with(pts, base_feed);
-        let program = program_of(self.start, pts, &feeds, &self.lines, &self.kept);
-        let mut cmd = interpolate(&program, self.machine, self.period_s, MAX_PERIODS)?;
-        let periods = cmd.t.len();
-        let line = std::mem::take(&mut cmd.line);
-        for col in cmd.axes.iter_mut() {
-            let last = *col.last().unwrap_or(&0.0);
-            col.resize(periods.max(self.orig_periods), last);
-        }
-        let actual = simulate_machine(self.machine, &cmd)?;
-        let tips: Vec<[f64; 3]> = (0..actual[0].len())
-            .map(|i| [actual[0][i], actual[1][i], actual[2][i]])
-            .collect();
-        let feet = self.reference.feet(&tips);
-        let sq: Vec<f64> = feet
-            .iter()
-            .map(|(_, e)| e.iter().map(|v| v * v).sum::<f64>())
-            .collect();
-        let rms = (sq.iter().sum::<f64>() / sq.len().max(1) as f64).sqrt();
-        let max = sq.iter().fold(0.0f64, |m, v| m.max(*v)).sqrt();
-        Ok(Eval {
-            feeds,
-            line,
-            periods,
-            actual,
-            feet,
-            rms,
-            max,
-        })
-    }
 }
 
 /// Rewrites `program` as G01 points at no less than its feeds so that `machine`'s simulated

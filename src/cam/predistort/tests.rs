@@ -2,7 +2,7 @@
 //! corners (the case it cannot help), the axis-limit refusal and the option checks.
 
 use super::*;
-use crate::motion::{gcode, interpolate};
+use crate::motion::{gcode, interpolate, simulate_machine};
 use serde_json::json;
 
 /// The demo machine's cascade (kv 30 1/s, kff 0.6, PI velocity loop, 0.5 ms current loop) on
