@@ -55,16 +55,35 @@ fn random_servo(axes: usize, rng: &mut impl rand::Rng) -> Vec<ServoAxis> {
         .collect()
 }
 
-/// A case of the classic generator: kind 0 none, 1..=7 the library, 8 out of library.
-pub(crate) fn build_classic(kind: usize, seed: u64) -> Built {
+/// The draws every generator opens with, in this order: the seeded generator, the 1 ms
+/// period, 2 axes with probability `p_two` (else 3), the servo, the program, and its main and
+/// validation blocks (the second run in the other direction).
+#[allow(clippy::type_complexity)]
+fn opening(
+    seed: u64,
+    p_two: f64,
+) -> (
+    rand::rngs::StdRng,
+    f64,
+    usize,
+    Vec<ServoAxis>,
+    Program,
+    [Vec<Vec<f64>>; 2],
+) {
     let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
     let period = 0.001;
-    let axes = if rng.random_bool(0.8) { 2 } else { 3 };
+    let axes = if rng.random_bool(p_two) { 2 } else { 3 };
     let servo = random_servo(axes, &mut rng);
     let program = Program::ALL[rng.random_range(0..Program::ALL.len())];
     let flip = rng.random_bool(0.5);
     let cmd = generate(program, axes, period, flip, &mut rng);
     let vcmd = generate(program, axes, period, !flip, &mut rng);
+    (rng, period, axes, servo, program, [cmd, vcmd])
+}
+
+/// A case of the classic generator: kind 0 none, 1..=7 the library, 8 out of library.
+pub(crate) fn build_classic(kind: usize, seed: u64) -> Built {
+    let (mut rng, period, axes, servo, program, [cmd, vcmd]) = opening(seed, 0.8);
     let duration = (cmd[0].len() - 1) as f64 * period;
     let mut truth = draw(kind, &servo, duration, &mut rng);
     if let Truth::Friction(f) = &mut truth {
@@ -118,14 +137,7 @@ pub(crate) fn build_classic(kind: usize, seed: u64) -> Built {
 
 /// A case of the widened generator (kinds of [`wide_category`]).
 pub(crate) fn build_wide(kind: usize, seed: u64) -> Built {
-    let mut rng = rand::rngs::StdRng::seed_from_u64(seed);
-    let period = 0.001;
-    let axes = if rng.random_bool(0.7) { 2 } else { 3 };
-    let servo = random_servo(axes, &mut rng);
-    let program = Program::ALL[rng.random_range(0..Program::ALL.len())];
-    let flip = rng.random_bool(0.5);
-    let cmd = generate(program, axes, period, flip, &mut rng);
-    let vcmd = generate(program, axes, period, !flip, &mut rng);
+    let (mut rng, period, _, servo, program, [cmd, vcmd]) = opening(seed, 0.7);
     let w = draw_wide(kind, &servo, &cmd, period, &mut rng);
     let sigma = rng.random_range(0.0002..0.0005);
     let clock = (w.category == Category::ClockLog).then(|| draw_clock(period, &mut rng));

@@ -129,6 +129,23 @@ fn friction_with_glitch(
     Truth::Friction(f)
 }
 
+/// A squareness error of random sign between two distinct random axes, its size (rad)
+/// drawn from `size`.
+fn squareness(d: usize, size: std::ops::Range<f64>, rng: &mut impl Rng) -> Truth {
+    let t = rng.random_range(0..d);
+    let s = (t + rng.random_range(1..d.max(2))) % d;
+    Truth::Squareness(t, s, sign(rng) * rng.random_range(size))
+}
+
+/// A scale error of random sign on every axis, each size (mm/mm) drawn from `size`.
+fn scale(d: usize, size: std::ops::Range<f64>, rng: &mut impl Rng) -> Truth {
+    Truth::Scale(
+        (0..d)
+            .map(|_| sign(rng) * rng.random_range(size.clone()))
+            .collect(),
+    )
+}
+
 fn cyclic(d: usize, amp: (f64, f64), rng: &mut impl Rng) -> Truth {
     const PITCHES: [f64; 8] = [1.0, 2.0, 4.0, 5.0, 8.0, 10.0, 16.0, 20.0];
     // any axis: each with probability 0.6, at least one; a 3-axis case plants a slow Z alone
@@ -199,16 +216,8 @@ pub fn draw_single(
             kv[k] *= 1.0 + sign(rng) * rng.random_range(0.05..0.25);
             Truth::Mismatch(kv)
         }
-        Effect::AxisSquareness => {
-            let t = rng.random_range(0..d);
-            let s = (t + rng.random_range(1..d.max(2))) % d;
-            Truth::Squareness(t, s, sign(rng) * rng.random_range(10e-6..80e-6))
-        }
-        Effect::ScaleError => Truth::Scale(
-            (0..d)
-                .map(|_| sign(rng) * rng.random_range(10e-6..80e-6))
-                .collect(),
-        ),
+        Effect::AxisSquareness => squareness(d, 10e-6..80e-6, rng),
+        Effect::ScaleError => scale(d, 10e-6..80e-6, rng),
         Effect::CyclicError => cyclic(d, (0.001, 0.005), rng),
         Effect::ThermalDrift => thermal(d, duration, (0.003, 0.020), rng),
     }
@@ -251,16 +260,8 @@ pub fn draw_extreme(
             kv[k] *= if rng.random_bool(0.5) { r } else { 1.0 / r };
             Truth::Mismatch(kv)
         }
-        Effect::AxisSquareness => {
-            let t = rng.random_range(0..d);
-            let s = (t + rng.random_range(1..d.max(2))) % d;
-            Truth::Squareness(t, s, sign(rng) * rng.random_range(2e-3..5e-3))
-        }
-        Effect::ScaleError => Truth::Scale(
-            (0..d)
-                .map(|_| sign(rng) * rng.random_range(3000e-6..7000e-6))
-                .collect(),
-        ),
+        Effect::AxisSquareness => squareness(d, 2e-3..5e-3, rng),
+        Effect::ScaleError => scale(d, 3000e-6..7000e-6, rng),
         Effect::CyclicError => cyclic(d, (0.05, 0.15), rng),
         Effect::ThermalDrift => thermal(d, duration, (0.5, 1.5), rng),
     }
