@@ -32,9 +32,11 @@ thread_local! {
     static COUNTED: Cell<bool> = const { Cell::new(false) };
 }
 
-/// Counts the calling thread as busy with numeric work until dropped ([`busy`]).
+/// Counts the calling thread as busy with numeric work until dropped ([`busy`]). Not `Send`:
+/// it must drop on the thread it counts.
 pub struct Busy {
     counted: bool,
+    _here: std::marker::PhantomData<*const ()>,
 }
 
 /// Counts the calling thread in the process-wide number of threads doing numeric work
@@ -47,7 +49,10 @@ pub fn busy() -> Busy {
     if counted {
         BUSY.fetch_add(1, Ordering::Relaxed);
     }
-    Busy { counted }
+    Busy {
+        counted,
+        _here: std::marker::PhantomData,
+    }
 }
 
 impl Drop for Busy {
@@ -74,7 +79,12 @@ pub fn machine_runnable() -> Option<usize> {
 
 /// The runnable count of a `/proc/loadavg` line (`"0.52 0.31 0.20 3/181 8642"` → 3).
 fn parse_runnable(text: &str) -> Option<usize> {
-    text.split_whitespace().nth(3)?.split('/').next()?.parse().ok()
+    text.split_whitespace()
+        .nth(3)?
+        .split('/')
+        .next()?
+        .parse()
+        .ok()
 }
 
 /// Whether a second thread started now would find a core of its own: the machine has two

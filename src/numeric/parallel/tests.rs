@@ -165,7 +165,10 @@ fn busy_counts_a_thread_once_and_scoped_threads_too() {
         (here, nested_is_noop)
     };
     assert_eq!(inside(), (true, true));
-    assert!(!COUNTED.with(Cell::get), "the guard's drop uncounts the thread");
+    assert!(
+        !COUNTED.with(Cell::get),
+        "the guard's drop uncounts the thread"
+    );
     // A scoped thread of `join` counts itself while it runs.
     let (seen, ()) = join(|| COUNTED.with(Cell::get), || ());
     assert!(seen.unwrap());

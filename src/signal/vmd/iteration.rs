@@ -61,7 +61,14 @@ pub(super) fn admm<C: Real>(
 ) -> (Vec<Vec<f64>>, usize, f64) {
     // This thread is busy (once, if its caller already said so) while the iteration runs.
     let _busy = parallel::busy();
-    admm_on(kernel, power, freqs, omega, params, threads_for(power.len()))
+    admm_on(
+        kernel,
+        power,
+        freqs,
+        omega,
+        params,
+        threads_for(power.len()),
+    )
 }
 
 /// Threads for an iteration over `bins` bins started now: as pinned by [`with_threads`], else
