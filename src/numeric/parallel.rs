@@ -1,13 +1,17 @@
 //! Splitting a core's work over scoped threads: the thread count, a static split into
 //! contiguous chunks (batches of equal cost: network inference, step errors), a dynamic queue
 //! (items of very different cost: gap effect fits), a two-task join, and a two-thread
-//! lockstep exchange (iterations too short for a thread or a futex per step: VMD's sweeps).
+//! lockstep exchange (iterations too short for a thread or a futex per step: VMD's sweeps),
+//! and the test of whether a second thread would find a free core ([`core_free`]: the
+//! process's own busy threads, [`busy`], and the machine's runnable threads).
 //!
 //! Written here rather than with rayon: the cores need three small patterns, and a global
 //! pool would compete with the service's own bounded worker pool (`jobs`) for the same cores.
 
-use std::sync::Mutex;
+use std::cell::Cell;
 use std::sync::atomic::{AtomicBool, AtomicUsize, Ordering};
+use std::sync::{Mutex, OnceLock};
+use std::thread::Thread;
 use std::time::{Duration, Instant};
 
 /// Threads to use when a caller asks for `asked` (0 = the machine's available
@@ -18,6 +22,82 @@ pub fn resolve_threads(asked: usize) -> usize {
     } else {
         asked
     }
+}
+
+/// Threads of the process doing numeric work now, each counted once ([`busy`]).
+static BUSY: AtomicUsize = AtomicUsize::new(0);
+
+thread_local! {
+    /// Whether this thread is counted in [`BUSY`] (so nested [`busy`] guards count it once).
+    static COUNTED: Cell<bool> = const { Cell::new(false) };
+}
+
+/// Counts the calling thread as busy with numeric work until dropped ([`busy`]). Not `Send`:
+/// it must drop on the thread it counts.
+pub struct Busy {
+    counted: bool,
+    _here: std::marker::PhantomData<*const ()>,
+}
+
+/// Counts the calling thread in the process-wide number of threads doing numeric work
+/// ([`busy_threads`]) until the guard drops; a thread already counted is not counted again.
+/// Every piece of work of the service's worker pool (through [`super::stop::run`]), every
+/// decomposition and every scoped thread of this module enters it, so the count covers
+/// work of every kind.
+pub fn busy() -> Busy {
+    let counted = !COUNTED.with(|c| c.replace(true));
+    if counted {
+        BUSY.fetch_add(1, Ordering::Relaxed);
+    }
+    Busy {
+        counted,
+        _here: std::marker::PhantomData,
+    }
+}
+
+impl Drop for Busy {
+    fn drop(&mut self) {
+        if self.counted {
+            BUSY.fetch_sub(1, Ordering::Relaxed);
+            COUNTED.with(|c| c.set(false));
+        }
+    }
+}
+
+/// Threads of the process doing numeric work now (see [`busy`]).
+pub fn busy_threads() -> usize {
+    BUSY.load(Ordering::Relaxed)
+}
+
+/// Threads runnable on the whole machine at this instant, the caller included: the fourth
+/// field's numerator of Linux's `/proc/loadavg` (`nr_running`, not an average). `None` where
+/// it cannot be read (another system, a sandbox).
+pub fn machine_runnable() -> Option<usize> {
+    let text = std::fs::read_to_string("/proc/loadavg").ok()?;
+    parse_runnable(&text)
+}
+
+/// The runnable count of a `/proc/loadavg` line (`"0.52 0.31 0.20 3/181 8642"` → 3).
+fn parse_runnable(text: &str) -> Option<usize> {
+    text.split_whitespace()
+        .nth(3)?
+        .split('/')
+        .next()?
+        .parse()
+        .ok()
+}
+
+/// Whether a second thread started now would find a core of its own: the machine has two
+/// or more cores, this process's busy threads ([`busy_threads`], the caller among them)
+/// leave one free, and so does the machine (its runnable threads, [`machine_runnable`],
+/// the caller among them, number fewer than its cores). A split whose threads wait on each
+/// other (VMD's lockstep sweeps) only pays when this holds: with every core taken, the
+/// partner waits for a time slice at each exchange. A snapshot; a load that comes later is
+/// met by [`Lockstep`]'s parking wait.
+pub fn core_free() -> bool {
+    let cores = resolve_threads(0);
+    let mine = busy_threads().max(1);
+    cores >= 2 && mine < cores && machine_runnable().is_none_or(|r| r.max(mine) < cores)
 }
 
 /// Items per chunk when `n` items are split over `threads` threads (0 = all cores), but at
@@ -46,6 +126,7 @@ pub fn map_chunks<T: Sync, R: Send>(
             .map(|(c, chunk)| {
                 s.spawn(move || {
                     let _stop = super::stop::install(stop.clone());
+                    let _busy = busy();
                     f(c * per, chunk)
                 })
             })
@@ -77,6 +158,7 @@ pub fn zip_chunks_mut<A: Sync, B: Send, R: Send>(
             .map(|(xc, yc)| {
                 s.spawn(move || {
                     let _stop = super::stop::install(stop.clone());
+                    let _busy = busy();
                     f(xc, yc)
                 })
             })
@@ -111,6 +193,7 @@ pub fn map_dynamic<T: Sync + Copy, R: Send>(
             .map(|_| {
                 s.spawn(|| {
                     let _stop = super::stop::install(stop.clone());
+                    let _busy = busy();
                     let mut mine = Vec::new();
                     loop {
                         let i = next.fetch_add(1, Ordering::Relaxed);
@@ -144,6 +227,7 @@ pub fn join<A: Send, B>(
     std::thread::scope(|s| {
         let handle = s.spawn(move || {
             let _stop = super::stop::install(stop);
+            let _busy = busy();
             background()
         });
         let b = foreground();
@@ -154,8 +238,9 @@ pub fn join<A: Send, B>(
 /// Two threads iterating in lockstep, each over its half of the data, that must combine a
 /// small per-iteration result (VMD's per-mode sums) before either can go on. Each step is a
 /// few microseconds, so the wait spins ([`std::hint::spin_loop`]) for up to
-/// [`Lockstep::SPIN`] before it falls back to yielding the core (a partner descheduled on a
-/// busy machine then costs a time slice, not a burned core).
+/// [`Lockstep::SPIN`], then parks the thread until the partner arrives: a partner that was
+/// descheduled (another process took its core) is then not spun against, and the waiting
+/// side's core goes idle, where the scheduler can run the partner at once.
 ///
 /// `exchange(side, step, mine)` publishes `mine` for `step`, waits for the other side's value
 /// of the same step and returns `(side 0's, side 1's)`: both sides see the same pair, so a
@@ -164,17 +249,27 @@ pub fn join<A: Send, B>(
 /// other has passed step s + 1, i.e. finished reading step s.
 ///
 /// If a side panics or returns early, its [`LockstepGuard`] marks the exchange abandoned and
-/// the other side's next wait panics instead of spinning forever.
+/// the other side's next wait panics instead of waiting forever.
 pub struct Lockstep<T> {
     slots: [[Mutex<Option<T>>; 2]; 2],
     arrived: AtomicUsize,
     generation: AtomicUsize,
     abandoned: AtomicBool,
+    /// Each side's thread, known once it has waited (to unpark it).
+    threads: [OnceLock<Thread>; 2],
+    /// Whether each side is parked (or about to be) in [`Lockstep::wait`].
+    parked: [AtomicBool; 2],
+    /// Waits that parked, both sides together (see [`Lockstep::parks`]).
+    parks: AtomicUsize,
 }
 
 impl<T: Clone> Lockstep<T> {
-    /// Longest spin before a waiting side yields its core.
-    pub const SPIN: Duration = Duration::from_micros(200);
+    /// Longest spin before a waiting side parks. The partner normally arrives within a few
+    /// microseconds (the two halves of a sweep cost the same); longer means it lost its core.
+    pub const SPIN: Duration = Duration::from_micros(50);
+
+    /// Longest single park (a safety net: the partner unparks the waiter when it arrives).
+    const PARK: Duration = Duration::from_millis(1);
 
     /// An exchange for two sides.
     pub fn new() -> Self {
@@ -183,16 +278,25 @@ impl<T: Clone> Lockstep<T> {
             arrived: AtomicUsize::new(0),
             generation: AtomicUsize::new(0),
             abandoned: AtomicBool::new(false),
+            threads: Default::default(),
+            parked: Default::default(),
+            parks: AtomicUsize::new(0),
         }
     }
 
-    /// A guard for side `side` (0 or 1): abandons the exchange when dropped while its thread
-    /// panics, or when [`LockstepGuard::leave`] was not called.
+    /// A guard for one side: abandons the exchange when dropped while its thread panics, or
+    /// when [`LockstepGuard::leave`] was not called.
     pub fn guard(&self) -> LockstepGuard<'_, T> {
         LockstepGuard {
             lockstep: self,
             left: false,
         }
+    }
+
+    /// How many waits so far outlasted [`Lockstep::SPIN`] and parked (both sides): 0 or
+    /// nearly so when each side has a core of its own.
+    pub fn parks(&self) -> usize {
+        self.parks.load(Ordering::Relaxed)
     }
 
     /// Publishes `mine` as side `side`'s value of `step`; returns both sides' values of that
@@ -202,7 +306,7 @@ impl<T: Clone> Lockstep<T> {
         *self.slots[parity][side]
             .lock()
             .unwrap_or_else(|p| p.into_inner()) = Some(mine);
-        self.wait();
+        self.wait(side);
         let read = |s: usize| {
             self.slots[parity][s]
                 .lock()
@@ -213,30 +317,60 @@ impl<T: Clone> Lockstep<T> {
         (read(0), read(1))
     }
 
-    /// The two-party barrier: the second to arrive opens it for both.
-    fn wait(&self) {
+    /// The two-party barrier: the second to arrive opens it for both and unparks the first
+    /// if it parked.
+    fn wait(&self, side: usize) {
         let generation = self.generation.load(Ordering::Acquire);
         if self.arrived.fetch_add(1, Ordering::AcqRel) == 1 {
             self.arrived.store(0, Ordering::Relaxed);
-            self.generation.fetch_add(1, Ordering::Release);
+            // SeqCst against the waiter's `parked` store and `generation` load: either it
+            // sees the new generation and does not park, or this sees it parked.
+            self.generation.fetch_add(1, Ordering::SeqCst);
+            self.unpark(1 - side);
             return;
         }
+        let opened = || self.generation.load(Ordering::SeqCst) != generation;
         let start = Instant::now();
         let mut spins = 0u32;
-        while self.generation.load(Ordering::Acquire) == generation {
-            if self.abandoned.load(Ordering::Acquire) {
-                if super::stop::requested() {
-                    // The other side was stopped (a cancelled job): stop too, quietly.
-                    super::stop::stop_now();
-                }
-                panic!("the other side of a lockstep exchange stopped");
-            }
+        while !opened() {
+            self.check_abandoned();
             spins = spins.wrapping_add(1);
             if spins % 64 != 0 || start.elapsed() < Self::SPIN {
                 std::hint::spin_loop();
-            } else {
-                std::thread::yield_now();
+                continue;
             }
+            self.threads[side].get_or_init(std::thread::current);
+            self.parks.fetch_add(1, Ordering::Relaxed);
+            while !opened() {
+                self.parked[side].store(true, Ordering::SeqCst);
+                if opened() {
+                    break;
+                }
+                std::thread::park_timeout(Self::PARK);
+                self.check_abandoned();
+            }
+            self.parked[side].store(false, Ordering::Relaxed);
+            return;
+        }
+    }
+
+    /// Unparks side `side` if it is parked in [`Lockstep::wait`].
+    fn unpark(&self, side: usize) {
+        if self.parked[side].swap(false, Ordering::SeqCst) {
+            if let Some(t) = self.threads[side].get() {
+                t.unpark();
+            }
+        }
+    }
+
+    /// Panics (or stops quietly, for a stopped job) when the other side abandoned the exchange.
+    fn check_abandoned(&self) {
+        if self.abandoned.load(Ordering::Acquire) {
+            if super::stop::requested() {
+                // The other side was stopped (a cancelled job): stop too, quietly.
+                super::stop::stop_now();
+            }
+            panic!("the other side of a lockstep exchange stopped");
         }
     }
 }
@@ -263,7 +397,12 @@ impl<T> LockstepGuard<'_, T> {
 impl<T> Drop for LockstepGuard<'_, T> {
     fn drop(&mut self) {
         if !self.left {
-            self.lockstep.abandoned.store(true, Ordering::Release);
+            let l = self.lockstep;
+            l.abandoned.store(true, Ordering::Release);
+            // Wake a parked partner so it sees the abandonment now, not after its park.
+            for t in l.threads.iter().filter_map(OnceLock::get) {
+                t.unpark();
+            }
         }
     }
 }

@@ -81,6 +81,8 @@ pub fn stop_now() -> ! {
 pub fn run<T>(should_stop: Check, f: impl FnOnce() -> T) -> Result<T, Stopped> {
     let outcome = {
         let _installed = install(Some(should_stop.clone()));
+        // Counted among the process's busy threads (a split elsewhere sees this core taken).
+        let _busy = super::parallel::busy();
         catch_unwind(AssertUnwindSafe(f))
     };
     match outcome {

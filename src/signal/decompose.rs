@@ -111,11 +111,13 @@ pub struct Decomposition {
     pub outliers: Vec<usize>,
 }
 
-/// Decompositions in progress in the process ([`decompose`] calls), read by the VMD
-/// iteration to decide whether a second thread would find a free core.
+/// Decompositions in progress in the process ([`decompose`] calls). Each also counts its
+/// thread among the process's busy threads (`numeric::parallel::busy`), which the VMD
+/// iteration reads to decide whether a second thread would find a free core.
 static RUNNING: AtomicUsize = AtomicUsize::new(0);
 
 /// The number of [`decompose`] calls in progress in the process, the caller's included.
+#[cfg(test)]
 pub(crate) fn decompositions_running() -> usize {
     RUNNING.load(Ordering::Relaxed)
 }
@@ -155,6 +157,8 @@ pub fn decompose(
     params: &DecomposeParams,
 ) -> Result<Decomposition, Error> {
     let _running = Running::enter();
+    // Among the process's busy threads, for the split decisions of other work.
+    let _busy = crate::numeric::parallel::busy();
     check_signal(method.as_str(), x, 16)?;
     params.flyers.validate()?;
     let grid = match (params.nu, params.nv) {

@@ -197,10 +197,10 @@ fn same_answer(what: &str, a: &Decomposition, b: &Decomposition) {
 
 /// Issue 25 (same input, same bits): a decomposition whose VMD is pinned to one thread and
 /// to two ([`crate::signal::vmd::with_threads`]) gives the same bits in every output, at
-/// 2,025 samples (f64 VMD, split from 1,024 bins), 20,000 and 40,000 (f32 VMD from 16,384
-/// bins), coarse-to-fine (EMD and wavelet beside the refinement on a second thread) and VMD
-/// alone. Before the fixed reduction order the split changed the last bits of ω and, through
-/// the screening and the refinement, the systematic part.
+/// 2,025, 20,000 and 40,000 samples (VMD in f32 and split from 1,024 bins), coarse-to-fine
+/// (EMD and wavelet beside the refinement on a second thread) and VMD alone. Before the
+/// fixed reduction order the split changed the last bits of ω and, through the screening
+/// and the refinement, the systematic part.
 #[test]
 fn decomposition_is_bit_identical_on_one_thread_or_two() {
     let p = DecomposeParams::default();

@@ -10,7 +10,6 @@ use super::admm::{Convergence, VmdParams};
 use super::sweep::{Kernel, Real, Sums};
 use crate::numeric::parallel::{self, Lockstep};
 use std::cell::Cell;
-use std::sync::atomic::{AtomicUsize, Ordering};
 
 /// Spectra at least this long (bins; signals of at least this many samples) are iterated by
 /// two threads in lockstep (see [`admm`]) when the machine has two cores. One sweep of 1,024
@@ -43,13 +42,16 @@ struct Bins<'a, C> {
 /// same order, so the answer is the same bits on one thread or two (checked by
 /// `split_iteration_is_bit_identical_to_single_thread`).
 ///
-/// Only a run that starts while no other VMD run and no other decomposition is in progress in
-/// the process splits: when the service's workers are all decomposing, the cores are already
-/// busy, and a second thread per run only adds waiting at the exchange. Measured with
-/// `bench/overload.sh` (2 workers, 8-64 connections; BENCHMARKS.md): goodput 76-78/s before
-/// the split, 50-58/s splitting always, 64-74/s splitting when no other VMD runs. That
-/// choice depends on the load, hence the fixed reduction order above: the load decides the
-/// speed, never the bits.
+/// Only a run that starts while a core is free splits ([`parallel::core_free`]: no other
+/// thread of the process busy with numeric work, whatever its kind, and fewer threads
+/// runnable on the machine than cores). When the service's workers are all busy, or another
+/// process holds the other core, a second thread per run only adds waiting at the exchange:
+/// its partner waits for a time slice. Measured with `bench/overload.sh` (2 workers, 8-64
+/// connections; BENCHMARKS.md): goodput 76-78/s before the split, 50-58/s splitting always,
+/// 64-74/s splitting when no other VMD runs; and with a CPU-bound process on the other core
+/// (BENCHMARKS.md, issue 25 item 7). A load that comes after the start is met by the
+/// exchange's parking wait ([`Lockstep`]). That choice depends on the load, hence the fixed
+/// reduction order above: the load decides the speed, never the bits.
 pub(super) fn admm<C: Real>(
     kernel: Kernel<C>,
     power: &[f64],
@@ -57,23 +59,26 @@ pub(super) fn admm<C: Real>(
     omega: &mut [f64],
     params: &VmdParams,
 ) -> (Vec<Vec<f64>>, usize, f64) {
-    // Runs of this iteration in progress in the process, this one included.
-    static RUNNING: AtomicUsize = AtomicUsize::new(0);
-    struct Running;
-    impl Drop for Running {
-        fn drop(&mut self) {
-            RUNNING.fetch_sub(1, Ordering::Relaxed);
-        }
-    }
-    let alone = RUNNING.fetch_add(1, Ordering::Relaxed) == 0
-        && crate::signal::decompose::decompositions_running() <= 1;
-    let _running = Running;
-    let threads = match PINNED.with(Cell::get) {
+    // This thread is busy (once, if its caller already said so) while the iteration runs.
+    let _busy = parallel::busy();
+    admm_on(
+        kernel,
+        power,
+        freqs,
+        omega,
+        params,
+        threads_for(power.len()),
+    )
+}
+
+/// Threads for an iteration over `bins` bins started now: as pinned by [`with_threads`], else
+/// 2 from [`PARALLEL_MIN_BINS`] bins when a core is free ([`parallel::core_free`]), else 1.
+pub(super) fn threads_for(bins: usize) -> usize {
+    match PINNED.with(Cell::get) {
         Some(t) => t,
-        None if alone && power.len() >= PARALLEL_MIN_BINS => parallel::resolve_threads(0).min(2),
+        None if bins >= PARALLEL_MIN_BINS && parallel::core_free() => 2,
         None => 1,
-    };
-    admm_on(kernel, power, freqs, omega, params, threads)
+    }
 }
 
 thread_local! {

@@ -1,7 +1,7 @@
 //! Tests of VMD: decompositions, parameter checks, stopping rules, the f32 path against the
 //! f64 one, and the fast sweeps against a naive reference sweep.
 
-use super::iteration::{admm, admm_on};
+use super::iteration::{admm, admm_on, threads_for};
 use super::sweep::{BLOCK, Kernel, Real, Sums, kernel_f32, kernel_f64, sweep_generic};
 use super::*;
 use realfft::RealFftPlanner;
@@ -341,8 +341,8 @@ fn split_iteration_is_bit_identical_to_single_thread() {
     }
 }
 
-/// [`vmd`] pinned to one thread and to two ([`with_threads`]) at 2,025 samples (f64, split
-/// from 1,024 bins), 20,000 and 40,000 (f32 from 16,384 bins): every mode sample, ω, the
+/// [`vmd`] pinned to one thread and to two ([`with_threads`]) at 2,025, 20,000 and 40,000
+/// samples (f32 and split from 1,024 bins): every mode sample, ω, the
 /// iteration count and the stopping measure are the same bits.
 #[test]
 fn vmd_is_bit_identical_on_one_thread_or_two() {
@@ -361,4 +361,35 @@ fn vmd_is_bit_identical_on_one_thread_or_two() {
             same_bits(&format!("mode {k} (n = {n})"), a, b);
         }
     }
+}
+
+/// Issue 25 item 7: the iteration splits only when a second thread would find a free core:
+/// never below 1,024 bins, never while every core is taken by the process's busy threads
+/// (here: as many threads as cores holding `numeric::parallel::busy`), and as pinned by
+/// [`with_threads`] whatever the load.
+#[test]
+fn splits_only_when_a_core_is_free() {
+    use crate::numeric::parallel;
+    assert_eq!(threads_for(512), 1);
+    assert_eq!(with_threads(2, || threads_for(4096)), 2);
+    assert_eq!(with_threads(1, || threads_for(4096)), 1);
+    let cores = parallel::resolve_threads(0);
+    let (entered, release) = (
+        std::sync::Barrier::new(cores + 1),
+        std::sync::Barrier::new(cores + 1),
+    );
+    let seen = std::thread::scope(|s| {
+        for _ in 0..cores {
+            s.spawn(|| {
+                let _busy = parallel::busy();
+                entered.wait();
+                release.wait();
+            });
+        }
+        entered.wait();
+        let seen = (threads_for(4096), parallel::core_free());
+        release.wait();
+        seen
+    });
+    assert_eq!(seen, (1, false), "{cores} busy threads on {cores} cores");
 }
