@@ -109,6 +109,16 @@ pub struct PredistortPoint {
     pub line: usize,
 }
 
+/// The side of the programmed path the material lies on, looking along the direction of
+/// travel (G41, tool left of the path: [`MaterialSide::Right`]; G42: [`MaterialSide::Left`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MaterialSide {
+    /// Material on the left of the direction of travel.
+    Left,
+    /// Material on the right of the direction of travel.
+    Right,
+}
+
 /// Contour error of a simulated run against the original programmed path.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ErrorStats {
@@ -189,6 +199,21 @@ pub fn predistort_keeping(
     program: &Program,
     opts: &PredistortOptions,
     keep: &dyn Fn(usize) -> bool,
+) -> Result<Predistorted, Error> {
+    predistort_sided(machine, program, opts, keep, &|_| None)
+}
+
+/// [`predistort_keeping`] with the material side of each source line's block, where the
+/// program says it (`side(line)`, from G41/G42): a corner turning towards the material is an
+/// outside corner (the command may loop out beyond it), one turning away from it an inside
+/// corner (the tool never goes more than [`GOUGE_LIMIT_MM`] beyond the path outside it);
+/// corners of lines with no side are outside corners (module docs).
+pub fn predistort_sided(
+    machine: &Machine,
+    program: &Program,
+    opts: &PredistortOptions,
+    keep: &dyn Fn(usize) -> bool,
+    side: &dyn Fn(usize) -> Option<MaterialSide>,
 ) -> Result<Predistorted, Error> {
     if !(opts.period_s.is_finite() && (1e-5..=0.1).contains(&opts.period_s)) {
         return Err(Error::Option {
@@ -283,6 +308,7 @@ pub fn predistort_keeping(
             start,
             &init_limits,
             &run.base_feed,
+            side,
         )
     } else {
         Vec::new()
@@ -336,7 +362,10 @@ pub fn predistort_keeping(
             iterations += 1;
             e = run.evaluate(&cand)?;
         }
-        if e.rms < cur_eval.rms * (1.0 - 1e-9) && e.max <= cur_eval.max * 1.01 + 1e-7 {
+        // A step may not take the program past its time budget (issue 24: 1.15×).
+        let in_time = e.periods as f64 <= (1.0 + TIME_BUDGET) * run.orig_periods as f64
+            || e.periods <= cur_eval.periods;
+        if e.rms < cur_eval.rms * (1.0 - 1e-9) && e.max <= cur_eval.max * 1.01 + 1e-7 && in_time {
             let gain = (cur_eval.rms - e.rms) / cur_eval.rms;
             cur = cand;
             cur_eval = e;
