@@ -21,10 +21,21 @@
 //! the service's own interpolation and simulation, all corners at once, each judged on its
 //! own stretch of path (the samples whose foot lies within its window): the
 //! distance-weighted sum of squared contour errors plus [`MAX_WEIGHT_MM`] times the squared
-//! largest one. A move is kept only when it lowers that, keeps the tool from going more than
-//! [`GOUGE_LIMIT_MM`] beyond the original path on the outer side of the turn (into the
-//! material at an inside corner; every corner is treated as one) and keeps the corner's
-//! extra time within its share of [`TIME_BUDGET`].
+//! largest one (at an inside corner, plus [`GOUGE_WEIGHT_MM`] times the squared gouge beyond
+//! 90 % of the limit). A move is kept only when it lowers that, keeps the tool out of the
+//! material and keeps the corner's extra time within its share of [`TIME_BUDGET`] (and the
+//! whole program within it).
+//!
+//! Material side. At an inside corner (the material outside the turn, as in a pocket) the
+//! tool may go no more than [`GOUGE_LIMIT_MM`] beyond the original path on the outer side of
+//! the turn, so the carried-past command may not make the tool overshoot. At an outside
+//! corner (the material inside the turn, as around a boss) the outer side is free: the
+//! command loops out there and the tool's overshoot is error like any other, counted in the
+//! figures; the tool may not cut deeper into the inside of the turn than it did at the start
+//! of the search. The program says which (G41: material right of the path, G42: left, see
+//! [`corner_is_outside`]); without G41/G42 every corner is read as an outside corner (the rule
+//! for an unknown side: the program is taken as an outside contour, where a finishing pass's
+//! sharp corners usually are; a pocket's corners are rounded by its tool).
 //!
 //! Reference: the servo lag and its feed-forward inverse, Zhang & Chen 2025 §3; the search,
 //! Hooke & Jeeves 1961 (pattern search with step halving).

@@ -32,8 +32,11 @@
 //! leaves the servo's braking lag, which cuts the corner. The corner stage (module `corners`)
 //! then splits each such corner point into three (end of braking, carried past, led in) and
 //! finds their offsets by pattern search on the same simulation, refusing moves that take the
-//! tool more than [`GOUGE_LIMIT_MM`] beyond the path outside the turn or past the corner's
-//! share of [`TIME_BUDGET`]; iteration steps that gouge at such a corner are taken back there.
+//! tool into the material (at an inside corner, more than [`GOUGE_LIMIT_MM`] beyond the path
+//! outside the turn; the material side from G41/G42, without them every corner an outside
+//! corner whose outer side is free: [`predistort_sided`]) or past the corner's share of
+//! [`TIME_BUDGET`]; iteration steps that gouge at such a corner, or take the program past the
+//! budget, are taken back.
 //! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
 //!
 //! Bad cases: machines with rotary axes (`xyzac_table`) and programs with dwells (G4) are
@@ -130,9 +133,9 @@ pub struct ErrorStats {
     /// RMS of that distance along the actual tool tip's path (each period weighted by the
     /// path length covered around it; issue 24's measure), mm.
     pub rms_distance_mm: f64,
-    /// Largest distance of the tool tip beyond the original path on the outer side of a
-    /// corner the junction limit slows (into the material were it an inside corner), within
-    /// 1 mm of path of the corner, mm (≤ 0: none).
+    /// Largest distance of the tool tip beyond the original path into the material side of a
+    /// corner the junction limit slows (outside the turn at an inside corner, into the turn
+    /// at an outside corner), within 1 mm of path of the corner, mm (≤ 0: none).
     pub gouge_mm: f64,
     /// Duration of the command (interpolation periods × period), s.
     pub duration_s: f64,
