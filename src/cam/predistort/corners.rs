@@ -475,10 +475,8 @@ pub(super) fn search(
             // where each alone did not: then they are all taken back.
             if e.periods as f64 > (1.0 + TIME_BUDGET) * orig_periods as f64 {
                 theta = last_theta.clone();
-                for c in 0..n {
-                    step[c] *= 0.5;
-                    refused_time[c] += 1;
-                }
+                step.iter_mut().for_each(|s| *s *= 0.5);
+                refused_time.iter_mut().for_each(|r| *r += 1);
                 continue;
             }
             (pts, cur_eval) = (p, e);
