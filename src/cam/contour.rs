@@ -31,7 +31,7 @@ use super::emit::{Emitter, LinePlan};
 use super::error::Error;
 use super::field::ErrorField;
 use super::predistort::{
-    self, ErrorStats, MAX_PERIODS, PredistortOptions, Predistorted, predistort_keeping,
+    self, ErrorStats, MAX_PERIODS, MaterialSide, PredistortOptions, Predistorted, predistort_sided,
 };
 use super::program::{Compensated, MAX_OUTPUT_BLOCKS, compensate_program, line_list};
 
@@ -160,9 +160,22 @@ fn contour_pass(
     }
     // What each line is, from the words (the emitter's own reading) and the blocks.
     let mut probe = Emitter::new();
+    // The material side each line's moves cut on (G41: tool left, material right; G42:
+    // material left; G40 or neither: unknown), modal from line to line.
+    let mut comp: Option<MaterialSide> = None;
+    let mut sides: Vec<Option<MaterialSide>> = vec![None; raw_lines.len() + 1];
     let kinds: Vec<Kind> = std::iter::once(Kind::Other)
         .chain(raw_lines.iter().enumerate().map(|(idx, raw)| {
             let info = probe.begin(raw);
+            for s in info.spans.iter().filter(|s| s.letter == 'G') {
+                match (s.value * 10.0).round() as i64 {
+                    400 => comp = None,
+                    410 => comp = Some(MaterialSide::Right),
+                    420 => comp = Some(MaterialSide::Left),
+                    _ => {}
+                }
+            }
+            sides[idx + 1] = comp;
             let blocks = &by_line[idx + 1];
             if info.machine_move || blocks.is_empty() {
                 Kind::Other
@@ -194,7 +207,8 @@ fn contour_pass(
     };
     // Lines written as programmed (rapids, cycles, copied moves) are simulated as such.
     let keep = |l: usize| kinds.get(l).is_some_and(|k| *k != Kind::Feed);
-    let mut result = predistort_keeping(
+    let side = |l: usize| sides.get(l).copied().flatten();
+    let mut result = predistort_sided(
         machine,
         &path,
         &PredistortOptions {
@@ -202,6 +216,7 @@ fn contour_pass(
             max_iterations: MAX_ITERATIONS,
         },
         &keep,
+        &side,
     )
     .map_err(|e| match e {
         predistort::Error::Unsupported(m) => {

@@ -674,6 +674,7 @@ async fn contour_precompensation_at_corners(app: TestApp) {
         let code = l.split('(').next().unwrap();
         if let Some(f) = code.split_whitespace().find_map(|w| w.strip_prefix('F')) {
             let f: f64 = f.parse().unwrap();
+            assert!(f <= 30_000.0, "F above the machine's rapid rate: {l}");
             if f < 2000.0 - 1e-9 {
                 slow += 1;
                 assert!(f >= 300.0, "{l}");

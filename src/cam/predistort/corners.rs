@@ -21,10 +21,21 @@
 //! the service's own interpolation and simulation, all corners at once, each judged on its
 //! own stretch of path (the samples whose foot lies within its window): the
 //! distance-weighted sum of squared contour errors plus [`MAX_WEIGHT_MM`] times the squared
-//! largest one. A move is kept only when it lowers that, keeps the tool from going more than
-//! [`GOUGE_LIMIT_MM`] beyond the original path on the outer side of the turn (into the
-//! material at an inside corner; every corner is treated as one) and keeps the corner's
-//! extra time within its share of [`TIME_BUDGET`].
+//! largest one (at an inside corner, plus [`GOUGE_WEIGHT_MM`] times the squared gouge beyond
+//! 90 % of the limit). A move is kept only when it lowers that, keeps the tool out of the
+//! material and keeps the corner's extra time within its share of [`TIME_BUDGET`] (and the
+//! whole program within it).
+//!
+//! Material side. At an inside corner (the material outside the turn, as in a pocket) the
+//! tool may go no more than [`GOUGE_LIMIT_MM`] beyond the original path on the outer side of
+//! the turn, so the carried-past command may not make the tool overshoot. At an outside
+//! corner (the material inside the turn, as around a boss) the outer side is free: the
+//! command loops out there and the tool's overshoot is error like any other, counted in the
+//! figures; the tool may not cut deeper into the inside of the turn than it did at the start
+//! of the search. The program says which (G41: material right of the path, G42: left, see
+//! [`corner_is_outside`]); without G41/G42 every corner is read as an outside corner (the rule
+//! for an unknown side: the program is taken as an outside contour, where a finishing pass's
+//! sharp corners usually are; a pocket's corners are rounded by its tool).
 //!
 //! Reference: the servo lag and its feed-forward inverse, Zhang & Chen 2025 §3; the search,
 //! Hooke & Jeeves 1961 (pattern search with step halving).
@@ -32,7 +43,7 @@
 use super::measure::{outward_offset, path_weights, tips_of};
 use super::reference::Reference;
 use super::{BREAK_RAD, POSITION_DECIMALS};
-use super::{Error, Eval, Run, norm, round_to, sub};
+use super::{Error, Eval, MaterialSide, Run, norm, round_to, sub};
 
 /// Largest distance (mm) the simulated tool tip may go beyond the original path on the
 /// outer side of a corner (issue 24: 1 µm); the search keeps a 10 % margin.
@@ -57,7 +68,7 @@ pub const MAX_WEIGHT_MM: f64 = 2.0;
 const MAX_LEAD_MM: f64 = 2.0;
 
 /// Most search rounds (up to two simulations each).
-const MAX_ROUNDS: usize = 120;
+const MAX_ROUNDS: usize = 200;
 
 /// One corner the stage works on.
 pub(super) struct CornerSpot {
@@ -68,6 +79,9 @@ pub(super) struct CornerSpot {
     pub d_out: [f64; 3],
     /// Unit vector into the turn.
     pub inside: [f64; 3],
+    /// An outside corner: the material lies inside the turn, the outer side is free (the
+    /// command may loop out there); otherwise an inside corner, the material outside the turn.
+    pub outside: bool,
     /// Turn of the path, rad.
     pub turn_rad: f64,
     /// Largest |δ| (mm).
@@ -102,14 +116,27 @@ pub(super) struct CornerScore {
     pub periods: usize,
 }
 
+/// Weight (mm) of the squared excess of an inside corner's gouge over 90 % of
+/// [`GOUGE_LIMIT_MM`] in its objective: large, so that the search first takes the tool back
+/// inside the limit where an earlier stage left it beyond.
+const GOUGE_WEIGHT_MM: f64 = 1e4;
+
 impl CornerScore {
-    fn objective(&self) -> f64 {
-        self.sum_sq + MAX_WEIGHT_MM * self.max * self.max
+    /// The search's objective (mm³) at corner `spot`.
+    fn objective(&self, spot: &CornerSpot) -> f64 {
+        let excess = if spot.outside {
+            0.0
+        } else {
+            (self.gouge - 0.9 * GOUGE_LIMIT_MM).max(0.0)
+        };
+        self.sum_sq + MAX_WEIGHT_MM * self.max * self.max + GOUGE_WEIGHT_MM * excess * excess
     }
 }
 
 /// The corners of the points `idx` (reference knot of each point; `idx[0]` is the start)
 /// whose original junction limit `limits` (mm/s) lies below the feed (`feeds`, mm/min).
+/// `side(line)` is the material side of the block of a source line, when the program says
+/// (G41/G42); corners of lines without one are outside corners ([`corner_is_outside`]).
 pub(super) fn find_corners(
     reference: &Reference,
     idx: &[usize],
@@ -117,6 +144,7 @@ pub(super) fn find_corners(
     start: [f64; 3],
     limits: &[(f64, usize)],
     feeds: &[f64],
+    side: &dyn Fn(usize) -> Option<MaterialSide>,
 ) -> Vec<CornerSpot> {
     let m = pts.len();
     let knots = &reference.knots;
@@ -145,15 +173,17 @@ pub(super) fn find_corners(
         let prev = if k == 0 { start } else { pts[k - 1] };
         let len_in = norm(sub(pts[k], prev));
         let len_out = norm(sub(pts[k + 1], pts[k]));
-        let cap_mm = 0.3f64.min(0.45 * len_in).min(0.45 * len_out);
+        let cap_mm = 0.5f64.min(0.45 * len_in).min(0.45 * len_out);
         let cap_lead_mm = MAX_LEAD_MM.min(0.9 * len_in);
         let sigma = reference.cum[ki];
         let half = (need * 0.15).clamp(1.0, 10.0);
+        let line = reference.line[ki];
         out.push(CornerSpot {
             k,
             d_in,
             d_out,
             inside,
+            outside: corner_is_outside(d_in, d_out, side(line)),
             turn_rad,
             cap_mm,
             cap_lead_mm,
@@ -162,7 +192,7 @@ pub(super) fn find_corners(
             lo: sigma - half,
             hi: sigma + half,
             v_junction: limits[k].0,
-            line: reference.line[ki],
+            line,
         });
     }
     // Windows of neighbouring corners meet halfway.
@@ -245,6 +275,41 @@ pub(super) fn split_values<T: Copy>(
     out
 }
 
+/// Whether a corner turning from `d_in` to `d_out` (unit tangents) is an outside corner (the
+/// material inside the turn, the outer side free): with the material side known (G41: tool
+/// left of the path, material right; G42: material left), when the turn, seen in the XY
+/// plane, points towards the material; without it, always (the rule of the module docs).
+/// A turn that is not mostly in the XY plane (|sin| of its XY part below half its own) with a
+/// side given counts as an inside corner, the cautious reading.
+pub(super) fn corner_is_outside(
+    d_in: [f64; 3],
+    d_out: [f64; 3],
+    side: Option<MaterialSide>,
+) -> bool {
+    let Some(side) = side else {
+        return true;
+    };
+    let cross_z = d_in[0] * d_out[1] - d_in[1] * d_out[0];
+    let cos = (0..3)
+        .map(|d| d_in[d] * d_out[d])
+        .sum::<f64>()
+        .clamp(-1.0, 1.0);
+    let sin = (1.0 - cos * cos).max(0.0).sqrt();
+    if cross_z.abs() < 0.5 * sin {
+        return false;
+    }
+    let left_turn = cross_z > 0.0;
+    left_turn == (side == MaterialSide::Left)
+}
+
+/// Signed distance (mm) of a tool tip beyond the original path into the material side of
+/// corner `c` ([`outward_offset`] at an inside corner, its negative, the depth cut into the
+/// turn, at an outside corner); positive values are gouges.
+pub(super) fn material_offset(reference: &Reference, c: &CornerSpot, s: f64, e: [f64; 3]) -> f64 {
+    let out = outward_offset(reference, s, e, c.inside);
+    if c.outside { -out } else { out }
+}
+
 /// The corner (index) whose window holds the arc parameter `s`, if any.
 fn window_of(corners: &[CornerSpot], s: f64) -> Option<usize> {
     let c = corners.partition_point(|c| c.hi < s);
@@ -263,7 +328,7 @@ pub(super) fn gouge(
         if let Some(c) = window_of(corners, *s)
             && (s - corners[c].sigma).abs() <= GOUGE_ARC_MM
         {
-            g = g.max(outward_offset(reference, *s, *e, corners[c].inside));
+            g = g.max(material_offset(reference, &corners[c], *s, *e));
         }
     }
     g
@@ -287,7 +352,7 @@ pub(super) fn score(reference: &Reference, corners: &[CornerSpot], e: &Eval) -> 
         sc.len += w[i];
         sc.max = sc.max.max(d2.sqrt());
         if (s - corners[c].sigma).abs() <= GOUGE_ARC_MM {
-            let g = outward_offset(reference, *s, *err, corners[c].inside);
+            let g = material_offset(reference, &corners[c], *s, *err);
             sc.gouge = sc.gouge.max(g);
         }
     }
@@ -351,6 +416,7 @@ pub(super) fn search(
     let mut refused_gouge = vec![0usize; n];
     let mut refused_time = vec![0usize; n];
     let mut simulations = 1;
+    let mut last_theta = theta.clone();
     for _round in 0..MAX_ROUNDS {
         if !active.iter().any(|a| *a) {
             break;
@@ -376,10 +442,10 @@ pub(super) fn search(
             if !active[c] {
                 continue;
             }
-            let gouge_ok = sc[c].gouge <= (0.9 * GOUGE_LIMIT_MM).max(before[c].gouge);
-            let time_ok = sc[c].periods <= before[c].periods + budget
-                && !(over && sc[c].periods > cur[c].periods);
-            let better = sc[c].objective() < cur[c].objective() * (1.0 - 1e-6);
+            let gouge_ok = sc[c].gouge <= (0.9 * GOUGE_LIMIT_MM).max(cur[c].gouge);
+            let time_ok = sc[c].periods <= before[c].periods + budget && !over;
+            let better =
+                sc[c].objective(&corners[c]) < cur[c].objective(&corners[c]) * (1.0 - 1e-6);
             if trial[c] != theta[c] && better && gouge_ok && time_ok {
                 theta[c] = trial[c];
                 fails[c] = 0;
@@ -403,8 +469,18 @@ pub(super) fn search(
             }
         }
         if moved {
-            (pts, cur_eval) = eval(&theta)?;
+            let (p, e) = eval(&theta)?;
             simulations += 1;
+            // The moves of several corners together may exceed the program's time budget
+            // where each alone did not: then they are all taken back.
+            if e.periods as f64 > (1.0 + TIME_BUDGET) * orig_periods as f64 {
+                theta = last_theta.clone();
+                step.iter_mut().for_each(|s| *s *= 0.5);
+                refused_time.iter_mut().for_each(|r| *r += 1);
+                continue;
+            }
+            (pts, cur_eval) = (p, e);
+            last_theta = theta.clone();
             cur = score(&run.reference, corners, &cur_eval);
         }
     }

@@ -32,8 +32,11 @@
 //! leaves the servo's braking lag, which cuts the corner. The corner stage (module `corners`)
 //! then splits each such corner point into three (end of braking, carried past, led in) and
 //! finds their offsets by pattern search on the same simulation, refusing moves that take the
-//! tool more than [`GOUGE_LIMIT_MM`] beyond the path outside the turn or past the corner's
-//! share of [`TIME_BUDGET`]; iteration steps that gouge at such a corner are taken back there.
+//! tool into the material (at an inside corner, more than [`GOUGE_LIMIT_MM`] beyond the path
+//! outside the turn; the material side from G41/G42, without them every corner an outside
+//! corner whose outer side is free: [`predistort_sided`]) or past the corner's share of
+//! [`TIME_BUDGET`]; iteration steps that gouge at such a corner, or take the program past the
+//! budget, are taken back.
 //! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
 //!
 //! Bad cases: machines with rotary axes (`xyzac_table`) and programs with dwells (G4) are
@@ -109,6 +112,16 @@ pub struct PredistortPoint {
     pub line: usize,
 }
 
+/// The side of the programmed path the material lies on, looking along the direction of
+/// travel (G41, tool left of the path: [`MaterialSide::Right`]; G42: [`MaterialSide::Left`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum MaterialSide {
+    /// Material on the left of the direction of travel.
+    Left,
+    /// Material on the right of the direction of travel.
+    Right,
+}
+
 /// Contour error of a simulated run against the original programmed path.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct ErrorStats {
@@ -120,9 +133,9 @@ pub struct ErrorStats {
     /// RMS of that distance along the actual tool tip's path (each period weighted by the
     /// path length covered around it; issue 24's measure), mm.
     pub rms_distance_mm: f64,
-    /// Largest distance of the tool tip beyond the original path on the outer side of a
-    /// corner the junction limit slows (into the material were it an inside corner), within
-    /// 1 mm of path of the corner, mm (≤ 0: none).
+    /// Largest distance of the tool tip beyond the original path into the material side of a
+    /// corner the junction limit slows (outside the turn at an inside corner, into the turn
+    /// at an outside corner), within 1 mm of path of the corner, mm (≤ 0: none).
     pub gouge_mm: f64,
     /// Duration of the command (interpolation periods × period), s.
     pub duration_s: f64,
@@ -189,6 +202,21 @@ pub fn predistort_keeping(
     program: &Program,
     opts: &PredistortOptions,
     keep: &dyn Fn(usize) -> bool,
+) -> Result<Predistorted, Error> {
+    predistort_sided(machine, program, opts, keep, &|_| None)
+}
+
+/// [`predistort_keeping`] with the material side of each source line's block, where the
+/// program says it (`side(line)`, from G41/G42): a corner turning towards the material is an
+/// outside corner (the command may loop out beyond it), one turning away from it an inside
+/// corner (the tool never goes more than [`GOUGE_LIMIT_MM`] beyond the path outside it);
+/// corners of lines with no side are outside corners (module docs).
+pub fn predistort_sided(
+    machine: &Machine,
+    program: &Program,
+    opts: &PredistortOptions,
+    keep: &dyn Fn(usize) -> bool,
+    side: &dyn Fn(usize) -> Option<MaterialSide>,
 ) -> Result<Predistorted, Error> {
     if !(opts.period_s.is_finite() && (1e-5..=0.1).contains(&opts.period_s)) {
         return Err(Error::Option {
@@ -283,6 +311,7 @@ pub fn predistort_keeping(
             start,
             &init_limits,
             &run.base_feed,
+            side,
         )
     } else {
         Vec::new()
@@ -336,7 +365,10 @@ pub fn predistort_keeping(
             iterations += 1;
             e = run.evaluate(&cand)?;
         }
-        if e.rms < cur_eval.rms * (1.0 - 1e-9) && e.max <= cur_eval.max * 1.01 + 1e-7 {
+        // A step may not take the program past its time budget (issue 24: 1.15×).
+        let in_time = e.periods as f64 <= (1.0 + TIME_BUDGET) * run.orig_periods as f64
+            || e.periods <= cur_eval.periods;
+        if e.rms < cur_eval.rms * (1.0 - 1e-9) && e.max <= cur_eval.max * 1.01 + 1e-7 && in_time {
             let gain = (cur_eval.rms - e.rms) / cur_eval.rms;
             cur = cand;
             cur_eval = e;

@@ -22,8 +22,9 @@ pub(super) fn corner_notes(spots: &[CornerSpot], res: &CornerResult) -> Vec<Stri
         }
         let why = if res.refused_gouge[c] > 0 {
             format!(
-                "carrying the command further past the corner would take the tool more than \
-                 {:.0} µm beyond the path on the outer side (a gouge, were it an inside corner)",
+                "carrying the command further past the corner would take the tool into the \
+                 material: more than {:.0} µm beyond the path outside the turn at an inside corner \
+                 (G41/G42), deeper into the turn than before at an outside corner",
                 GOUGE_LIMIT_MM * 1e3
             )
         } else if res.refused_time[c] > 0 {

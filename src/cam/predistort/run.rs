@@ -132,7 +132,9 @@ pub(super) struct Run<'a> {
 impl Run<'_> {
     /// Feeds (mm/min) of the segments ending at `pts`: the programmed feed scaled by the
     /// chord's length ratio, not below the programmed feed, not above the `max_vel` of any
-    /// axis (unless the programmed feed already is), rounded up to [`FEED_DECIMALS`].
+    /// axis nor the machine's rapid rate (unless the programmed feed already is), rounded up
+    /// to [`FEED_DECIMALS`]. (A tiny segment whose point moved far, e.g. the first after a
+    /// rapid, would otherwise ask for a feed hundreds of times the programmed one.)
     pub fn feeds(&self, pts: &[[f64; 3]]) -> Vec<f64> {
         self.feeds_with(pts, &self.base_feed)
     }
@@ -147,7 +149,7 @@ impl Run<'_> {
             let base = base_feed[k];
             let mut f = base;
             if self.base_len[k] > 0.0 && len > self.base_len[k] {
-                f = base * len / self.base_len[k];
+                f = (base * len / self.base_len[k]).min(self.machine.rapid_mm_min);
                 for (i, ax) in self.machine.axes.iter().enumerate().take(3) {
                     if d[i].abs() > 1e-12 {
                         f = f.min(60.0 * ax.limits.max_vel * len / d[i].abs());

@@ -57,6 +57,11 @@ fn acute(feed: f64) -> String {
     format!("G90 G17 G94\nG1 X20 F{feed}\nG1 X{x1} Y{y1}\nG1 X{x2} Y{y2}\n")
 }
 
+/// A 10 mm square, four 90° corners (left turns), closed.
+fn square(feed: f64) -> String {
+    format!("G90 G17 G94\nG1 X10 F{feed}\nG1 Y10\nG1 X0\nG1 Y0\n")
+}
+
 /// Programmed feed (mm/min) of the block of `line`.
 fn feed_of_line(m: &Machine, prog: &gcode::Program, line: usize) -> f64 {
     let b = prog.blocks.iter().find(|b| b.line == line).unwrap();
@@ -67,35 +72,47 @@ fn feed_of_line(m: &Machine, prog: &gcode::Program, line: usize) -> f64 {
     }
 }
 
-/// Ratios (compensated / original) a program is held to: distance-weighted RMS and max.
-/// Issue 24's gates are 0.3 and 0.5; where the stage does not reach them yet the test holds
-/// the program to what it reaches (printed as NOT MET beside the gate).
+/// What a case is held to: issue 24's gates (distance-weighted RMS ≤ 0.3×, max ≤ 0.5×,
+/// duration ≤ 1.15×, gouge ≤ 1 µm at inside corners), asserted; or, where the pre-distortion
+/// does not reach them, the ratios it does reach (asserted so that it cannot get worse
+/// unnoticed) with the reason, printed beside NOT MET.
 #[derive(Clone, Copy)]
-struct Held {
-    rms: f64,
-    max: f64,
+enum Expect {
+    Gates,
+    Miss {
+        rms: f64,
+        max: f64,
+        why: &'static str,
+    },
 }
 
-const GATES: Held = Held { rms: 0.3, max: 0.5 };
-
-/// Runs the pre-distortion, prints original vs compensated beside the goals, re-simulates
+/// Runs the pre-distortion (material side `side` for every line, `None`: the rule for
+/// programs without G41/G42), prints original vs compensated beside the goals, re-simulates
 /// the emitted points from text, and checks issue 24's constraints (duration ≤ 1.15×, no
-/// feed lowered beyond the original's own speed, no gouge beyond 1 µm or the original's,
-/// never worse than the original) and the ratios `held`.
-fn check_corner_goals(name: &str, kv: f64, text: &str, held: Held) -> Predistorted {
+/// feed lowered beyond the original's own speed, no gouge beyond 1 µm or the original's)
+/// and the ratios of `expect`.
+fn check_corner_goals(
+    name: &str,
+    kv: f64,
+    text: &str,
+    side: Option<MaterialSide>,
+    expect: Expect,
+) -> Predistorted {
     let m = machine_kv(kv);
     let prog = gcode::parse(text).unwrap();
     let opts = PredistortOptions {
         period_s: 1e-3,
         max_iterations: 30,
     };
-    let out = predistort(&m, &prog, &opts).unwrap();
+    let t0 = std::time::Instant::now();
+    let out = predistort_sided(&m, &prog, &opts, &|_| false, &|_| side).unwrap();
+    let wall = t0.elapsed().as_secs_f64();
     let (o, c) = (out.original, out.compensated);
     println!(
         "{name} (kv {kv}): distance-weighted RMS {:.2} → {:.2} µm ({:.3}×, goal ≤ 0.1×, gate ≤ 0.3×); \
          max {:.2} → {:.2} µm ({:.3}×, gate ≤ 0.5×); per-period RMS {:.2} → {:.2} µm; \
          duration {:.3} → {:.3} s ({:.3}×, gate ≤ 1.15×); gouge {:.2} → {:.2} µm (gate ≤ 1 µm); \
-         {} points, {} simulations",
+         {} points, {} simulations, {wall:.2} s",
         o.rms_distance_mm * 1e3,
         c.rms_distance_mm * 1e3,
         c.rms_distance_mm / o.rms_distance_mm,
@@ -113,13 +130,23 @@ fn check_corner_goals(name: &str, kv: f64, text: &str, held: Held) -> Predistort
         out.iterations
     );
     let met = |ok: bool| if ok { "met" } else { "NOT MET" };
+    let gates = [
+        c.rms_distance_mm <= 0.3 * o.rms_distance_mm,
+        c.max_mm <= 0.5 * o.max_mm,
+        c.duration_s <= 1.15 * o.duration_s,
+        c.gouge_mm <= GOUGE_LIMIT_MM.max(o.gouge_mm),
+    ];
     println!(
-        "  gates: RMS ≤ 0.3× {}, max ≤ 0.5× {}, duration ≤ 1.15× {}, gouge ≤ 1 µm {}",
-        met(c.rms_distance_mm <= 0.3 * o.rms_distance_mm),
-        met(c.max_mm <= 0.5 * o.max_mm),
-        met(c.duration_s <= 1.15 * o.duration_s),
-        met(c.gouge_mm <= GOUGE_LIMIT_MM)
+        "  gates: RMS ≤ 0.3× {}, max ≤ 0.5× {}, duration ≤ 1.15× {}, no gouge on the material \
+         side (≤ 1 µm, or the original's where it cuts the turn) {}",
+        met(gates[0]),
+        met(gates[1]),
+        met(gates[2]),
+        met(gates[3])
     );
+    if let Expect::Miss { why, .. } = expect {
+        println!("  NOT MET: {why}");
+    }
     for n in &out.notes {
         println!("  note: {n}");
     }
@@ -173,14 +200,18 @@ fn check_corner_goals(name: &str, kv: f64, text: &str, held: Held) -> Predistort
         .len();
     assert!((periods as f64 * 1e-3 - c.duration_s).abs() < 1e-9);
     assert!(o.max_mm > 1e-3, "the original must have an error to remove");
+    let (rms, max) = match expect {
+        Expect::Gates => (0.3, 0.5),
+        Expect::Miss { rms, max, .. } => (rms, max),
+    };
     assert!(
-        c.rms_distance_mm <= held.rms * o.rms_distance_mm,
+        c.rms_distance_mm <= rms * o.rms_distance_mm,
         "{name}: distance-weighted RMS {} vs {}",
         c.rms_distance_mm,
         o.rms_distance_mm
     );
     assert!(
-        c.max_mm <= held.max * o.max_mm,
+        c.max_mm <= max * o.max_mm,
         "{name}: max {} vs {}",
         c.max_mm,
         o.max_mm
@@ -202,61 +233,152 @@ fn check_corner_goals(name: &str, kv: f64, text: &str, held: Held) -> Predistort
 
 #[test]
 fn issue_contour_meets_the_corner_goals() {
-    let out = check_corner_goals(
+    check_corner_goals(
         "circle + 140° + 90° corners F2000",
         40.0,
         &issue_program(2000.0),
-        GATES,
+        None,
+        Expect::Gates,
     );
-    assert!(out.compensated.gouge_mm <= GOUGE_LIMIT_MM);
 }
 
 #[test]
 fn kinked_square_meets_the_corner_goals() {
-    let out = check_corner_goals("square with 20° kinks F3000", 30.0, KINKED_SQUARE, GATES);
-    assert!(out.compensated.gouge_mm <= GOUGE_LIMIT_MM);
-}
-
-/// Not met yet: every corner of the staircase is refused further steps for the gouge (the
-/// original already goes 1.6 µm beyond the path outside its corners); held to what it
-/// reaches.
-#[test]
-fn short_segments_improve() {
-    let held = Held {
-        rms: 0.8,
-        max: 0.95,
-    };
-    check_corner_goals("2 mm staircase F1000", 60.0, &staircase(1000.0), held);
-    let never_worse = Held { rms: 1.0, max: 1.0 };
     check_corner_goals(
-        "2 mm staircase F2000",
-        40.0,
-        &staircase(2000.0),
-        never_worse,
+        "square with 20° kinks F3000",
+        30.0,
+        KINKED_SQUARE,
+        None,
+        Expect::Gates,
     );
 }
 
-/// Arc–line corners: the half circle's own radius error is removed, the corners partly.
+/// Why corner cases miss the RMS gate: what the corner stage can move.
+const LOCAL: &str = "the corner stage moves three points per corner (braking lead, carry-past, \
+    lead-in) and its pattern search stops in a local minimum; the error left lies along the \
+    braking stretch next to the corner, which needs a correction of every point through the \
+    braking (iterative learning over the jerk-limited braking block), not done yet";
+
+/// Short segments: 2 mm steps, 90° corners turning left and right.
 #[test]
-fn arc_line_corners_improve() {
-    let never_worse = Held { rms: 1.0, max: 1.0 };
+fn short_segments_improve() {
+    let miss = Expect::Miss {
+        rms: 0.5,
+        max: 0.6,
+        why: LOCAL,
+    };
+    check_corner_goals("2 mm staircase F1000", 60.0, &staircase(1000.0), None, miss);
+    let miss = Expect::Miss {
+        rms: 0.76,
+        max: 0.85,
+        why: LOCAL,
+    };
+    check_corner_goals("2 mm staircase F2000", 40.0, &staircase(2000.0), None, miss);
+}
+
+/// Arcs meeting lines at 90° corners.
+#[test]
+fn arc_line_corners() {
+    let why = "the G01 points of the arc's speed ramp after the line–arc corner already take \
+        7.5 % longer than the arc itself (every G01 block ramps from zero acceleration), so \
+        the 1.15× time budget stops the corner stage early";
+    let miss = Expect::Miss {
+        rms: 0.9,
+        max: 0.5,
+        why,
+    };
     check_corner_goals(
         "line–half circle R10–line F3000",
         30.0,
         &arc_line(3000.0),
-        never_worse,
+        None,
+        miss,
     );
     check_corner_goals(
         "line–half circle R10–line F1000",
         50.0,
         &arc_line(1000.0),
-        never_worse,
+        None,
+        Expect::Gates,
     );
 }
 
-/// An acute corner (140° turn): the max meets its gate, the RMS falls just short.
+/// 140° turns (acute corners) across the feed and gain ranges.
 #[test]
-fn acute_corner_improves() {
-    let held = Held { rms: 0.4, max: 0.5 };
-    check_corner_goals("140° turn + 90° corner F1500", 50.0, &acute(1500.0), held);
+fn acute_corners_improve() {
+    let miss = Expect::Miss {
+        rms: 0.45,
+        max: 0.5,
+        why: LOCAL,
+    };
+    check_corner_goals(
+        "140° turn + 90° corner F1500",
+        50.0,
+        &acute(1500.0),
+        None,
+        miss,
+    );
+    let miss = Expect::Miss {
+        rms: 0.42,
+        max: 0.4,
+        why: LOCAL,
+    };
+    check_corner_goals(
+        "140° turn + 90° corner F1000",
+        60.0,
+        &acute(1000.0),
+        None,
+        miss,
+    );
+    let miss = Expect::Miss {
+        rms: 0.35,
+        max: 0.25,
+        why: LOCAL,
+    };
+    check_corner_goals(
+        "140° turn + 90° corner F3000",
+        30.0,
+        &acute(3000.0),
+        None,
+        miss,
+    );
+}
+
+/// 90° corners across the feed and gain ranges.
+#[test]
+fn square_corners() {
+    check_corner_goals(
+        "10 mm square F1000",
+        30.0,
+        &square(1000.0),
+        None,
+        Expect::Gates,
+    );
+    let miss = Expect::Miss {
+        rms: 0.45,
+        max: 0.5,
+        why: LOCAL,
+    };
+    check_corner_goals("10 mm square F3000", 60.0, &square(3000.0), None, miss);
+}
+
+/// Inside corners (G41 with left turns: the material lies outside every turn, as in a
+/// pocket): the tool must never go more than 1 µm beyond the path outside the turn.
+#[test]
+fn inside_corners_do_not_gouge() {
+    let why = "at an inside corner the tool may not pass the corner outside the turn (1 µm), \
+        so no overshoot loop can turn it: the corner stays cut by the servo's lag at the \
+        junction speed";
+    let out = check_corner_goals(
+        "10 mm square, inside corners (G41) F2000",
+        40.0,
+        &square(2000.0),
+        Some(MaterialSide::Right),
+        Expect::Miss {
+            rms: 0.5,
+            max: 0.65,
+            why,
+        },
+    );
+    assert!(out.compensated.gouge_mm <= GOUGE_LIMIT_MM);
 }
