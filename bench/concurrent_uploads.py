@@ -12,8 +12,9 @@ Modes (--mode):
   stored   every row is valid: the points are paired with the nominal grid and stored (201).
 Formats (--format): csv (default; `x,y,z` rows) or json (`{"points": [[x, y, z], ...]}`).
 
-The surface's PUT (itself a large body) happens first; the peak is then reset
-(/proc/PID/clear_refs, 5) so that VmHWM covers the uploads only. Prints each answer's status
+The surface's PUT (itself a large body) happens first, then the server is restarted on the
+same data dir and its peak reset (/proc/PID/clear_refs, 5), so that VmHWM covers the uploads
+only. Prints each answer's status
 and time, the parsed arrays' size of one upload (points: 24 bytes a row; stored: plus the
 deviations, 8 bytes a row), and the server's peak RSS above its level before the uploads.
 
@@ -111,18 +112,25 @@ def build_body():
 
 port = free_port()
 data_dir = tempfile.mkdtemp(prefix="truecut-rss-")
-server = subprocess.Popen(
-    [binary, "serve", "--addr", f"127.0.0.1:{port}", "--data-dir", data_dir, *extra],
-    stdout=subprocess.DEVNULL,
-    stderr=subprocess.DEVNULL,
-)
-try:
-    for _ in range(200):
+
+
+def start_server():
+    proc = subprocess.Popen(
+        [binary, "serve", "--addr", f"127.0.0.1:{port}", "--data-dir", data_dir, *extra],
+        stdout=subprocess.DEVNULL,
+        stderr=subprocess.DEVNULL,
+    )
+    for _ in range(400):
         try:
             if request(port, "GET", "/healthz")[0] == 200:
                 break
         except OSError:
             time.sleep(0.05)
+    return proc
+
+
+server = start_server()
+try:
     body, nv = build_body()
     rows = NU * nv
     machine = {"kinematics": "xyz", "axes": {"X": {"kv": 30}, "Y": {"kv": 30}, "Z": {"kv": 30}}}
@@ -134,6 +142,12 @@ try:
     status, data = request(port, "PUT", "/v1/machines/m/surfaces/s", surface)
     assert status in (200, 201), (status, data[:300])
     del surface
+    # A fresh process on the same data dir, so that the heap the surface's PUT left behind
+    # neither counts nor serves the uploads.
+    server.terminate()
+    server.wait()
+    server = start_server()
+    assert request(port, "GET", "/v1/machines/m/surfaces")[0] == 200
     time.sleep(0.5)
     with open(f"/proc/{server.pid}/clear_refs", "w") as f:
         f.write("5")  # reset VmHWM to the current RSS

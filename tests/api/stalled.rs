@@ -174,7 +174,7 @@ async fn a_large_body_that_stalls_gets_408() {
     assert!(answer.starts_with("HTTP/1.1 408"), "{answer}");
     assert!(answer.contains("stopped arriving"), "{answer}");
     assert!(t0.elapsed() < Duration::from_secs(4), "{:?}", t0.elapsed());
-    let list: serde_json::Value = app.get(&format!("{UPLOAD}")).await.json().await.unwrap();
+    let list: serde_json::Value = app.get(UPLOAD).await.json().await.unwrap();
     assert_eq!(list["measurements"].as_array().unwrap().len(), 0, "{list}");
 }
 
