@@ -1,3 +1,6 @@
+//! Unit tests of parsing a body as it arrives: chunked CSV and JSON read as the whole body
+//! does, an early refusal stops the reading, a failed body is a read error.
+
 use std::sync::Arc;
 use std::sync::atomic::{AtomicUsize, Ordering};
 

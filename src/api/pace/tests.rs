@@ -1,3 +1,6 @@
+//! Unit tests of the body pace: the allowance, the sentences, and bodies read at a good
+//! rate, too slowly, stalled, small on a slow link (the HTTP behaviour: tests/api/stalled.rs).
+
 use std::time::Duration;
 
 use super::*;
