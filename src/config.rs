@@ -49,10 +49,17 @@ pub struct Config {
     #[arg(long, default_value_t = DEFAULT_MAX_BODY_BYTES, env = "TRUECUT_MAX_BODY_BYTES")]
     pub max_body_bytes: usize,
 
-    /// Seconds a request body may take to arrive after its headers (or stall) before the
-    /// request is answered 408 and its connection freed.
+    /// Seconds a request body may pause (no byte arriving) before the request is answered
+    /// 408 and its connection freed; also the whole time a small body (at most 64 KiB) may
+    /// take, so small requests work on slow links.
     #[arg(long, default_value_t = 30.0, env = "TRUECUT_BODY_TIMEOUT_S")]
     pub body_timeout_s: f64,
+
+    /// Slowest average rate at which a body larger than 64 KiB may arrive, after a grace of
+    /// 2 s: bytes per second, or a number with a unit `KiB`, `MiB` (per second), e.g. `64KiB`.
+    /// A slower body is answered 408. `0`: no minimum (only --body-timeout-s applies).
+    #[arg(long, default_value = "64KiB", value_parser = parse_rate, env = "TRUECUT_MIN_BODY_RATE")]
+    pub min_body_rate: u64,
 
     /// Seconds that in-flight background jobs get to finish at shutdown before they are
     /// recorded as failed.
@@ -137,6 +144,37 @@ pub fn parse_duration(s: &str) -> Result<Duration, String> {
         .map_err(|_| format!("'{s}' must be a finite duration of 0 or more"))
 }
 
+/// Default `--min-body-rate`: 64 KiB/s, bytes per second. A 128 MiB body at that rate takes
+/// 34 minutes; a shop-floor link is hundreds of times faster, a slowloris client is not.
+pub const DEFAULT_MIN_BODY_RATE: u64 = 64 * 1024;
+
+/// Reads a rate flag in bytes per second: a whole number of bytes, or a number followed by
+/// `K`/`KiB`/`KB` (×1024) or `M`/`MiB`/`MB` (×1024²), optionally with `/s` (`64KiB`, `1MiB/s`).
+pub fn parse_rate(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    let t = t.strip_suffix("/s").unwrap_or(t).trim();
+    let split = t.find(|c: char| c.is_ascii_alphabetic()).unwrap_or(t.len());
+    let (number, unit) = t.split_at(split);
+    let scale = match unit.trim().to_ascii_lowercase().as_str() {
+        "" | "b" => 1.0,
+        "k" | "kib" | "kb" => 1024.0,
+        "m" | "mib" | "mb" => 1024.0 * 1024.0,
+        _ => {
+            return Err(format!(
+                "'{s}': the unit must be KiB or MiB per second (e.g. 64KiB, 1MiB) or none (bytes)"
+            ));
+        }
+    };
+    let value: f64 = number
+        .trim()
+        .parse()
+        .map_err(|_| format!("'{s}' is not a rate: write e.g. 64KiB, 1MiB or 65536"))?;
+    if !(value.is_finite() && value >= 0.0) {
+        return Err(format!("'{s}' must be a finite rate of 0 or more"));
+    }
+    Ok((value * scale).round() as u64)
+}
+
 /// Default `--max-inflight-body-mb`: one maximum-size body (128 MiB) plus room for small
 /// ones, so 8 concurrent maximum uploads stay under 300 MB of resident memory
 /// (BENCHMARKS.md, "Concurrent uploads").
@@ -167,6 +205,7 @@ impl Config {
             queue: 32,
             max_body_bytes: DEFAULT_MAX_BODY_BYTES,
             body_timeout_s: 30.0,
+            min_body_rate: DEFAULT_MIN_BODY_RATE,
             shutdown_grace_s: 30,
             lease_s: 10.0,
             db_wait_s: 0.0,

@@ -90,7 +90,11 @@ pub async fn start(config: &Config) -> Result<Server> {
         tokens: Arc::new(tokens),
         metrics: Arc::new(api::metrics::Metrics::default()),
         max_body_bytes: config.max_body_bytes,
-        body_timeout,
+        pace: api::pace::Pace {
+            stall: body_timeout,
+            min_rate: config.min_body_rate,
+            grace: api::pace::RATE_GRACE,
+        },
         body_budget: Arc::new(api::admission::BodyBudget::new(
             inflight,
             config.max_body_bytes as u64,

@@ -24,9 +24,9 @@ use super::error::ApiError;
 /// What a token may do. Ordered: `Read < Write < Admin`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Role {
-    /// GETs and computing POSTs that store nothing.
+    /// GETs and computing POSTs that store nothing (answered directly, never as a job).
     Read,
-    /// Measurement uploads.
+    /// Measurement uploads, and requests that queue a stored job.
     Write,
     /// Machine and surface definitions, training, deletes.
     Admin,
@@ -209,6 +209,20 @@ pub async fn authenticate(State(state): State<AppState>, mut req: Request, next:
         role
     };
     let needed = match *req.method() {
+        // A request that asks to run as a job (RFC 7240) stores one: write, refused before
+        // its body is read.
+        Method::POST if asks_for_job(req.headers()) => Role::Write,
+        // A probe upload (up to --max-body-bytes) is refused before it takes room for its
+        // body; the handler's `RequireWrite` says the same.
+        Method::POST
+            if req
+                .uri()
+                .path()
+                .trim_end_matches('/')
+                .ends_with("/measurements") =>
+        {
+            Role::Write
+        }
         // Cancelling a job is the submitter's business (write), not an administrator's.
         Method::DELETE if req.uri().path().starts_with("/v1/jobs/") => Role::Write,
         Method::DELETE => Role::Admin,
@@ -220,6 +234,31 @@ pub async fn authenticate(State(state): State<AppState>, mut req: Request, next:
     }
     req.extensions_mut().insert(role);
     next.run(req).await
+}
+
+/// True when the request asks to be answered by a job (`Prefer: respond-async`, RFC 7240).
+pub fn asks_for_job(headers: &header::HeaderMap) -> bool {
+    headers
+        .get_all("prefer")
+        .iter()
+        .filter_map(|v| v.to_str().ok())
+        .flat_map(|v| v.split(','))
+        .any(|p| p.trim().eq_ignore_ascii_case("respond-async"))
+}
+
+/// 403 unless `role` may queue a stored job (`write` or `admin`): a stored job holds its
+/// input (up to --max-body-bytes) in the database until it ends, so a `read` token may
+/// only ask for direct answers. `what` says why this request would be a job.
+pub fn may_queue_job(role: Option<Role>, what: &str) -> Result<(), ApiError> {
+    match role {
+        Some(have) if have < Role::Write => Err(ApiError::forbidden(format!(
+            "{what}, so it would queue a stored job, which needs a token with role 'write' or \
+             higher; yours has role '{}'. Send a smaller request for a direct answer, or use a \
+             write token",
+            have.as_str()
+        ))),
+        _ => Ok(()),
+    }
 }
 
 fn forbidden(have: Role, need: Role) -> ApiError {

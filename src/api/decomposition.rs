@@ -13,7 +13,7 @@ use serde::Deserialize;
 use serde_json::Value;
 
 use super::AppState;
-use super::auth::RequireWrite;
+use super::auth::{RequireWrite, Role};
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, check_finite, decode_json, read_body};
 use super::lookup::{require_measurement, require_surface};
@@ -83,7 +83,7 @@ async fn run(
     x: Vec<f64>,
     method: Method,
     params: DecomposeParams,
-    job_input: Option<&[u8]>,
+    job_input: Option<(&[u8], Option<Role>)>,
 ) -> ApiResult<Result<signal::Decomposition, Response>> {
     if x.len() > signal::decompose::MAX_SAMPLES {
         return Err(ApiError::payload_too_large(format!(
@@ -92,9 +92,16 @@ async fn run(
             signal::decompose::MAX_SAMPLES
         )));
     }
-    if let Some(body) = job_input
+    if let Some((body, role)) = job_input
         && x.len() > MAX_SYNC
     {
+        super::auth::may_queue_job(
+            role,
+            &format!(
+                "the signal has {} samples, more than the {MAX_SYNC} answered directly",
+                x.len()
+            ),
+        )?;
         let input = String::from_utf8(body.to_vec())
             .map_err(|_| ApiError::bad_request("the request body is not UTF-8 JSON"))?;
         let id = state.jobs.enqueue(JOB_KIND, input).await?;
@@ -108,6 +115,7 @@ async fn run(
 }
 
 async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResult<Response> {
+    let role = req.extensions().get::<Role>().copied();
     let body = read_body(req).await?;
     let r: DecomposeRequest = decode_json(&body)?;
     if r.signal.is_empty() {
@@ -117,7 +125,7 @@ async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResul
     }
     check_finite("signal", &r.signal)?;
     super::ranges::check_signal_mm("signal", &r.signal)?;
-    match run(&state, r.signal, r.method, r.params, Some(&body)).await? {
+    match run(&state, r.signal, r.method, r.params, Some((&body, role))).await? {
         Ok(v) => Ok(ApiJson(Versioned::new(v)).into_response()),
         Err(accepted) => Ok(accepted),
     }

@@ -13,6 +13,7 @@ use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
 use super::AppState;
+use super::auth::Role;
 use super::contour::reader_options;
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, decode_json, is_json, read_body};
@@ -91,6 +92,7 @@ async fn gap_diagnosis(
             "send the body with Content-Type: application/json",
         ));
     }
+    let role = request.extensions().get::<Role>().copied();
     let body = read_body(request).await?;
     let req: GapRequest = decode_json(&body)?;
     let def = require_machine(&state, &machine).await?;
@@ -120,6 +122,13 @@ async fn gap_diagnosis(
                 .and_then(Value::as_array)
                 .map_or(0, Vec::len);
             if n.max(nv) > MAX_SYNC_SAMPLES {
+                super::auth::may_queue_job(
+                    role,
+                    &format!(
+                        "the log has {} rows, more than the {MAX_SYNC_SAMPLES} diagnosed directly",
+                        n.max(nv)
+                    ),
+                )?;
                 // validate now so bad input is a 4xx, not a failed job
                 motion_inputs(&m, &req)?;
                 let input = serde_json::to_string(&StoredGap {

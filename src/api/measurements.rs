@@ -13,9 +13,10 @@ use serde_json::{Value, json};
 use super::AppState;
 use super::auth::{RequireAdmin, RequireWrite};
 use super::error::{ApiError, ApiResult};
-use super::extract::{ApiJson, is_csv_body, read_body};
-use super::lookup::{require_measurement, require_surface};
-use super::upload::{ProbeData, parse_csv_upload, parse_json_upload};
+use super::extract::{ApiJson, is_csv_body};
+use super::intake::parse_streaming;
+use super::lookup::{require_measurement, require_surface, require_surface_grid};
+use super::upload::{ProbeData, read_csv_upload, read_json_upload};
 use crate::api::id::{Id, PathIds};
 use crate::signal::flyers::{FlyerParams, suspects};
 use crate::store::Measurement;
@@ -53,23 +54,32 @@ async fn post_measurement(
         "application/json ({\"points\"} or {\"deviations\"}) \
                  or text/csv (header x,y,z or deviation)",
     )?;
-    let body = read_body(req).await?;
-    let (data, body_id) = tokio::task::spawn_blocking(move || {
+    // Before the body is read: the surface exists (404) and, for CSV, whose id can only
+    // come from the query, the id is free (409). A refused upload is never read.
+    let n = require_surface_grid(&state, &machine, &surface).await?;
+    let query_id = query
+        .get("id")
+        .map(|id| Id::parse("measurement", id))
+        .transpose()?;
+    if is_csv && let Some(id) = &query_id {
+        refuse_taken(&state, &machine, &surface, id).await?;
+    }
+    // Parsed as it arrives; a CSV with more rows than the grid is refused at the first one.
+    let (data, body_id) = parse_streaming(req.into_body(), move |input| {
         if is_csv {
-            parse_csv_upload(&body).map(|d| (d, None))
+            read_csv_upload(input, Some(n)).map(|d| (d, None))
         } else {
-            parse_json_upload(&body)
+            read_json_upload(input)
         }
     })
-    .await
-    .map_err(ApiError::internal)??;
-    let id = match body_id.or_else(|| query.get("id").cloned()) {
-        Some(id) => Id::parse("measurement", &id)?,
-        None => Id::parse("measurement", &uuid::Uuid::now_v7().to_string())?,
+    .await?;
+    let id = match (body_id, query_id) {
+        (Some(id), _) => Id::parse("measurement", &id)?,
+        (None, Some(id)) => id,
+        (None, None) => Id::parse("measurement", &uuid::Uuid::now_v7().to_string())?,
     };
     let surf = require_surface(&state, &machine, &surface).await?;
     let (nu, nv) = (surf.nu, surf.nv);
-    let n = nu * nv;
     if data.len() != n {
         return Err(ApiError::bad_request(format!(
             "{} has {} entries but surface '{surface}' has {n} grid points (nu*nv = {}*{}); \
@@ -80,15 +90,7 @@ async fn post_measurement(
             surf.nv
         )));
     }
-    if state
-        .store
-        .measurement_exists(&machine, &surface, &id)
-        .await?
-    {
-        return Err(ApiError::conflict(format!(
-            "measurement '{id}' already exists on surface '{surface}'; choose another id or DELETE it first"
-        )));
-    }
+    refuse_taken(&state, &machine, &surface, &id).await?;
     let limits = state.limits;
     let (deviations, points) = tokio::task::spawn_blocking(move || match data {
         ProbeData::Deviations(d) => limits
@@ -132,6 +134,16 @@ async fn post_measurement(
         })),
     )
         .into_response())
+}
+
+/// 409 when measurement `id` is taken on the surface.
+async fn refuse_taken(state: &AppState, machine: &Id, surface: &Id, id: &Id) -> ApiResult<()> {
+    if state.store.measurement_exists(machine, surface, id).await? {
+        return Err(ApiError::conflict(format!(
+            "measurement '{id}' already exists on surface '{surface}'; choose another id or DELETE it first"
+        )));
+    }
+    Ok(())
 }
 
 /// The upload's warning about suspected probe flyers (none when `outliers` is empty).

@@ -1,12 +1,11 @@
 //! Cross-cutting request handling: problem+json for every error, the early body-size
-//! check, and the fallback for unknown routes.
+//! check, and the fallback for unknown routes (the pace of bodies: `pace.rs`).
 
 use axum::body::to_bytes;
 use axum::extract::{Request, State};
 use axum::http::{StatusCode, header};
 use axum::middleware::Next;
 use axum::response::{IntoResponse, Response};
-use std::future::Future;
 
 use super::error::{ApiError, problem_response};
 
@@ -79,75 +78,4 @@ pub async fn problem_json(req: Request, next: Next) -> Response {
         }
     }
     out
-}
-
-/// Request bodies that do not arrive in time (CONTRACT v1.1): the body is wrapped so that a
-/// read still waiting [`AppState::body_timeout`](super::AppState) after the headers fails,
-/// and the answer, whatever the handler made of the failed read, becomes 408. Work that the
-/// body would have fed never starts, so no worker is held by a stalled client.
-pub async fn body_deadline(
-    State(timeout): State<std::time::Duration>,
-    req: Request,
-    next: Next,
-) -> Response {
-    let expired = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
-    let (parts, body) = req.into_parts();
-    let body = axum::body::Body::new(DeadlineBody {
-        inner: body,
-        deadline: Box::pin(tokio::time::sleep(timeout)),
-        expired: expired.clone(),
-    });
-    let resp = next.run(Request::from_parts(parts, body)).await;
-    if expired.load(std::sync::atomic::Ordering::Relaxed) {
-        return problem_response(
-            StatusCode::REQUEST_TIMEOUT,
-            &format!(
-                "the request body did not arrive within {} s of its headers; send it \
-                 without pauses (or split a very large upload)",
-                timeout.as_secs_f64()
-            ),
-        );
-    }
-    resp
-}
-
-/// A request body that fails with [`BodyTimedOut`] once its deadline passes.
-struct DeadlineBody {
-    inner: axum::body::Body,
-    deadline: std::pin::Pin<Box<tokio::time::Sleep>>,
-    expired: std::sync::Arc<std::sync::atomic::AtomicBool>,
-}
-
-/// The error a [`DeadlineBody`] read ends with.
-#[derive(Debug, thiserror::Error)]
-#[error("the request body did not arrive in time")]
-struct BodyTimedOut;
-
-impl http_body::Body for DeadlineBody {
-    type Data = bytes::Bytes;
-    type Error = axum::BoxError;
-
-    fn poll_frame(
-        mut self: std::pin::Pin<&mut Self>,
-        cx: &mut std::task::Context<'_>,
-    ) -> std::task::Poll<Option<Result<http_body::Frame<Self::Data>, Self::Error>>> {
-        use std::task::Poll;
-        if let Poll::Ready(frame) = std::pin::Pin::new(&mut self.inner).poll_frame(cx) {
-            return Poll::Ready(frame.map(|f| f.map_err(Into::into)));
-        }
-        if self.deadline.as_mut().poll(cx).is_ready() {
-            self.expired
-                .store(true, std::sync::atomic::Ordering::Relaxed);
-            return Poll::Ready(Some(Err(BodyTimedOut.into())));
-        }
-        Poll::Pending
-    }
-
-    fn is_end_stream(&self) -> bool {
-        self.inner.is_end_stream()
-    }
-
-    fn size_hint(&self) -> http_body::SizeHint {
-        self.inner.size_hint()
-    }
 }

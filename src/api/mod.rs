@@ -17,6 +17,7 @@ pub mod extract;
 pub mod gap;
 pub mod health;
 pub mod id;
+pub mod intake;
 pub mod iso230;
 pub mod iso230_comp;
 pub mod iso230_runs;
@@ -27,6 +28,7 @@ pub mod measurements;
 pub mod metrics;
 pub mod middleware;
 pub mod model_versions;
+pub mod pace;
 pub mod ranges;
 pub mod step_error;
 pub mod surfaces;
@@ -62,8 +64,8 @@ pub struct AppState {
     pub metrics: Arc<metrics::Metrics>,
     /// Largest accepted request body, bytes.
     pub max_body_bytes: usize,
-    /// How long a request body may take to arrive after its headers (then 408).
-    pub body_timeout: std::time::Duration,
+    /// How fast a request body must arrive (`--body-timeout-s`, `--min-body-rate`; then 408).
+    pub pace: pace::Pace,
     /// Request-body bytes the process holds at once (`--max-inflight-body-mb`).
     pub body_budget: Arc<admission::BodyBudget>,
     /// Plausibility limits of measured values (`--max-deviation-mm`, `--max-tangential-mm`).
@@ -92,27 +94,34 @@ pub fn router(state: AppState) -> Router {
         .merge(iso230_runs::routes())
         .merge(iso230_comp::routes())
         .fallback(middleware::fallback)
-        // Innermost first: auth sees only routed requests; the problem+json rewrite covers
-        // framework rejections (405, path errors); metrics see the final status.
-        .layer(axum::middleware::from_fn_with_state(
-            state.clone(),
-            auth::authenticate,
-        ))
+        // Innermost first: the problem+json rewrite covers framework rejections (405, path
+        // errors); metrics see the final status. Everything up to the pace runs before a
+        // body is read, cheapest first (outermost): the declared size, the token and role,
+        // the records the path names, room on the worker pool, room for the body.
         .layer(axum::middleware::from_fn(middleware::problem_json))
-        // The body's deadline starts once the request is admitted (below), so time spent
-        // waiting for room is not charged to the client.
-        .layer(axum::middleware::from_fn_with_state(
-            state.body_timeout,
-            middleware::body_deadline,
-        ))
-        // Before any body is read: room on the worker pool, then room for the body.
+        // Room for the body (a chunked body takes room as it is read).
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
             admission::body_budget,
         ))
+        // The pace clock runs only while the client is awaited: time spent waiting for room
+        // (the body's inner wrapper, above) is not charged to the client.
+        .layer(axum::middleware::from_fn_with_state(
+            state.pace,
+            pace::paced_body,
+        ))
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),
             admission::shed_when_full,
+        ))
+        // The machine or surface the path names exists (a cheap query, no arrays read).
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            lookup::parents_exist,
+        ))
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            auth::authenticate,
         ))
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),

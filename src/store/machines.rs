@@ -62,6 +62,15 @@ impl Store {
         }
     }
 
+    /// True when the machine exists (its definition is not read).
+    pub async fn machine_exists(&self, machine: &str) -> Result<bool> {
+        let n: i64 = sqlx::query_scalar("SELECT COUNT(*) FROM machines WHERE id = $1")
+            .bind(machine.to_string())
+            .fetch_one(&self.db)
+            .await?;
+        Ok(n > 0)
+    }
+
     /// Every machine, ordered by id.
     pub async fn list_machines(&self) -> Result<Vec<MachineSummary>> {
         let rows = sqlx::query("SELECT id, definition FROM machines ORDER BY id")

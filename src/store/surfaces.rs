@@ -120,6 +120,27 @@ impl Store {
         }))
     }
 
+    /// The surface's grid size `(nu, nv)` without its arrays, or `None` if the machine or
+    /// surface does not exist (the cheap check made before a request body is read).
+    pub async fn surface_grid(
+        &self,
+        machine: &str,
+        surface: &str,
+    ) -> Result<Option<(usize, usize)>> {
+        let row = sqlx::query("SELECT nu, nv FROM surfaces WHERE machine = $1 AND id = $2")
+            .bind(machine.to_string())
+            .bind(surface.to_string())
+            .fetch_optional(&self.db)
+            .await?;
+        match row {
+            None => Ok(None),
+            Some(row) => Ok(Some((
+                to_usize(row.try_get(0)?)?,
+                to_usize(row.try_get(1)?)?,
+            ))),
+        }
+    }
+
     /// The extra (non-grid) fields of the surface's PUT body, or `None`.
     pub async fn get_surface_extra(
         &self,

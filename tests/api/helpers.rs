@@ -344,3 +344,51 @@ pub async fn assert_problem(
     }
     body
 }
+
+/// A deviation CSV for a 2 x 2 surface, padded with comment lines to exactly `len` bytes
+/// (at least 64): a large body that is cheap to parse and store.
+pub fn padded_deviation_csv(len: usize) -> Vec<u8> {
+    let mut csv = b"deviation\n0.01\n0.02\n0.0\n-0.01\n".to_vec();
+    loop {
+        let room = len - csv.len();
+        let line = if room >= 2048 { 1024 } else { room };
+        csv.extend_from_slice(b"# ");
+        csv.resize(csv.len() + line - 3, b'x');
+        csv.push(b'\n');
+        if line == room {
+            return csv;
+        }
+    }
+}
+
+/// Opens a connection and sends the head of `method path` with `headers` (each `Name: value`);
+/// returns the stream to send the body on.
+pub async fn raw_request(
+    addr: &str,
+    method: &str,
+    path: &str,
+    headers: &[&str],
+) -> tokio::net::TcpStream {
+    use tokio::io::AsyncWriteExt;
+    let host = addr.trim_start_matches("http://");
+    let mut s = tokio::net::TcpStream::connect(host).await.unwrap();
+    let mut head = format!("{method} {path} HTTP/1.1\r\nHost: {host}\r\n");
+    for h in headers {
+        head.push_str(h);
+        head.push_str("\r\n");
+    }
+    head.push_str("\r\n");
+    s.write_all(head.as_bytes()).await.unwrap();
+    s
+}
+
+/// The start of the answer on `s` (up to 8 KiB), or a panic when none comes `within`.
+pub async fn raw_answer(s: &mut tokio::net::TcpStream, within: std::time::Duration) -> String {
+    use tokio::io::AsyncReadExt;
+    let mut buf = vec![0u8; 8192];
+    let n = tokio::time::timeout(within, s.read(&mut buf))
+        .await
+        .expect("no answer in time")
+        .unwrap();
+    String::from_utf8_lossy(&buf[..n]).into_owned()
+}
