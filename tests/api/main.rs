@@ -15,6 +15,7 @@ mod contour;
 mod crash;
 mod dashboard;
 mod decomposition;
+mod faults;
 mod fleet;
 mod gap;
 mod hardening;
