@@ -414,13 +414,14 @@ impl JobPool {
                 Ok(worker) => {
                     let (store, job) = (&inner.store, job_id.as_str());
                     // A start whose answer a cut connection lost shows as running here.
-                    let started = persist(store, "cannot mark the job running", move || async move {
-                        match store.start_job(job).await? {
-                            Some(epoch) => Ok(Some(epoch)),
-                            None => store.running_here(job).await,
-                        }
-                    })
-                    .await;
+                    let started =
+                        persist(store, "cannot mark the job running", move || async move {
+                            match store.start_job(job).await? {
+                                Some(epoch) => Ok(Some(epoch)),
+                                None => store.running_here(job).await,
+                            }
+                        })
+                        .await;
                     match started {
                         Ok(None) => None, // cancelled while queued: never runs
                         Err(e) => {

@@ -134,7 +134,10 @@ impl Progress {
         let Some(g) = &self.gate else {
             return Ok(());
         };
-        match g.runtime.block_on(g.store.claim_job_commit(&g.id, self.epoch())) {
+        match g
+            .runtime
+            .block_on(g.store.claim_job_commit(&g.id, self.epoch()))
+        {
             Ok(true) => Ok(()),
             Ok(false) => {
                 self.cancel();

@@ -213,12 +213,7 @@ pub(super) async fn claim_loop(inner: Arc<Inner>) {
                             return;
                         }
                     };
-                    tokio::spawn(run_claimed(
-                        inner.clone(),
-                        job,
-                        progress,
-                        permits,
-                    ));
+                    tokio::spawn(run_claimed(inner.clone(), job, progress, permits));
                     continue;
                 }
                 Ok(None) => {}

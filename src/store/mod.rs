@@ -31,8 +31,8 @@ pub use jobs::{CancelOutcome, ClaimedJob, JobBytes, JobRecord};
 pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};
 pub use model_versions::{ModelVersion, ModelVersions, Rollback};
-pub use outage::{DatabaseOutage, database_outage};
 pub use models::{JobDone, MODEL_FORMAT_VERSION, ModelStore, VERSIONS_KEPT, is_valid_id};
+pub use outage::{DatabaseOutage, database_outage};
 pub use storage::{
     StorageFailure, StorageState, check_data_dir, free_bytes, probe_writable, state_of,
     storage_failure,

@@ -34,7 +34,9 @@ pub(crate) fn classify(e: &sqlx::Error) -> Option<DatabaseOutage> {
         sqlx::Error::Tls(t) => Some(O::ConnectionLost(t.to_string())),
         // A reply cut mid-message reads as a malformed one.
         sqlx::Error::Protocol(p) => Some(O::ConnectionLost(p.clone())),
-        sqlx::Error::WorkerCrashed => Some(O::ConnectionLost("the connection's worker ended".into())),
+        sqlx::Error::WorkerCrashed => {
+            Some(O::ConnectionLost("the connection's worker ended".into()))
+        }
         sqlx::Error::PoolTimedOut => Some(O::Busy("the pool's wait ran out".into())),
         sqlx::Error::PoolClosed => Some(O::Busy("the pool is closed".into())),
         sqlx::Error::Database(d) => classify_code(d.code().as_deref()?, d.message()),

@@ -289,10 +289,20 @@ async fn a_lapsed_instance_writes_nothing_for_its_jobs() {
     store.register_instance(400).await.unwrap();
     store.insert_job("j", "stored", Some("{}")).await.unwrap();
     let claimed = store.claim_job(&["stored".into()]).await.unwrap().unwrap();
-    assert!(store.report_job_progress("j", claimed.attempts, 0.2).await.unwrap());
+    assert!(
+        store
+            .report_job_progress("j", claimed.attempts, 0.2)
+            .await
+            .unwrap()
+    );
     tokio::time::sleep(Duration::from_millis(600)).await;
     assert!(store.fenced());
-    assert!(!store.report_job_progress("j", claimed.attempts, 0.5).await.unwrap());
+    assert!(
+        !store
+            .report_job_progress("j", claimed.attempts, 0.5)
+            .await
+            .unwrap()
+    );
     assert!(!store.claim_job_commit("j", claimed.attempts).await.unwrap());
     let done = store
         .finish_job("j", claimed.attempts, "done", 1.0, Some(&json!({})), None)
