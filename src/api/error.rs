@@ -34,7 +34,8 @@ pub enum ApiError {
     UnsupportedMediaType(String),
     /// 422: well-formed but semantically unusable input.
     Unprocessable(String),
-    /// 503: the worker pool is full; retry after the given seconds.
+    /// 503: the worker pool is full, or the database is out for now (a cut connection, a
+    /// failover); retry after the given seconds.
     Unavailable {
         /// What is busy, shown to the client.
         detail: String,
@@ -229,18 +230,26 @@ impl IntoResponse for ApiError {
     }
 }
 
+/// Seconds a client is told to wait (`Retry-After`) after a database outage: the pool opens
+/// a new connection on the next request, and a failover usually takes a few seconds.
+pub const OUTAGE_RETRY_AFTER_S: u64 = 1;
+
 impl From<anyhow::Error> for ApiError {
     /// A write the storage refused (full, read-only, forbidden: `store::storage_failure`)
-    /// is 507 with a sentence; other store and infrastructure failures are 500s (`{:#}`
+    /// is 507 with a sentence; a database outage (a cut connection, a failover, no free
+    /// connection: `store::database_outage`) is 503 with `Retry-After`, for the request can
+    /// be sent again as it was; other store and infrastructure failures are 500s (`{:#}`
     /// keeps the cause chain in the log).
     fn from(err: anyhow::Error) -> Self {
-        match crate::store::storage_failure(&err) {
-            Some(failure) => {
-                tracing::error!(cause = %format!("{err:#}"), "storage refused a write");
-                ApiError::InsufficientStorage(failure.to_string())
-            }
-            None => ApiError::Internal(format!("{err:#}")),
+        if let Some(failure) = crate::store::storage_failure(&err) {
+            tracing::error!(cause = %format!("{err:#}"), "storage refused a write");
+            return ApiError::InsufficientStorage(failure.to_string());
         }
+        if let Some(outage) = crate::store::database_outage(&err) {
+            tracing::warn!(cause = %format!("{err:#}"), "database outage: answered 503");
+            return ApiError::unavailable(outage.to_string(), OUTAGE_RETRY_AFTER_S);
+        }
+        ApiError::Internal(format!("{err:#}"))
     }
 }
 

@@ -64,8 +64,14 @@ struct StoredGap {
 /// the job runs (as the door read it), the request is the body as sent.
 pub fn runner(state: AppState) -> Runner {
     let handle = tokio::runtime::Handle::current();
-    let sentence = |e: ApiError| e.detail().to_string();
     Arc::new(move |input: &str, p: &Progress| {
+        // A database outage (503) puts the job back in the queue instead of failing it.
+        let sentence = |e: ApiError| {
+            if e.status() == axum::http::StatusCode::SERVICE_UNAVAILABLE {
+                p.retry_later();
+            }
+            e.detail().to_string()
+        };
         let job: StoredGap = serde_json::from_str(input)
             .map_err(|e| format!("the stored job input is not a gap diagnosis: {e}"))?;
         let req: GapRequest = serde_json::from_str(&job.body)

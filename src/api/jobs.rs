@@ -142,8 +142,7 @@ async fn list_jobs(
             after.as_ref().map(|(ms, id)| (*ms, id.as_str())),
             with_result,
         )
-        .await
-        .map_err(ApiError::internal)?;
+        .await?;
     let mut jobs = serde_json::to_value(&page.jobs).map_err(ApiError::internal)?;
     if !with_result && let Some(list) = jobs.as_array_mut() {
         for job in list.iter_mut().filter_map(serde_json::Value::as_object_mut) {
@@ -170,7 +169,7 @@ async fn cancel_job(
     State(state): State<AppState>,
     PathIds([id]): PathIds<1>,
 ) -> ApiResult<ApiJson<JobStatus>> {
-    match state.jobs.cancel(&id).await.map_err(ApiError::internal)? {
+    match state.jobs.cancel(&id).await? {
         Cancel::Cancelled(status) => Ok(ApiJson(status)),
         Cancel::Ended(status) => Err(ApiError::conflict(format!(
             "job '{id}' has already ended ({}) or is storing its result; nothing to cancel",

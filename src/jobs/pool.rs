@@ -11,7 +11,7 @@ use tokio::task::JoinHandle;
 
 use super::limits::{SetOnDrop, sleep_or_forever};
 use super::progress::{Cancel, JobStatus, Progress};
-use super::worker::{claim_loop, finish, new_progress, stoppable, watch_job};
+use super::worker::{claim_loop, finish, new_progress, persist, stoppable, watch_job};
 use crate::numeric;
 use crate::store::{CancelOutcome, Reaped, Store};
 use serde_json::Value;
@@ -411,23 +411,37 @@ impl JobPool {
             inner.queued.fetch_sub(1, Ordering::Relaxed);
             let outcome = match worker {
                 Err(e) => Some(Err(format!("worker pool closed: {e}"))),
-                Ok(worker) => match inner.store.start_job(&job_id).await {
-                    Ok(false) => None, // cancelled while queued: never runs
-                    started => {
-                        if let Err(e) = started {
+                Ok(worker) => {
+                    let (store, job) = (&inner.store, job_id.as_str());
+                    // A start whose answer a cut connection lost shows as running here.
+                    let started =
+                        persist(store, "cannot mark the job running", move || async move {
+                            match store.start_job(job).await? {
+                                Some(epoch) => Ok(Some(epoch)),
+                                None => store.running_here(job).await,
+                            }
+                        })
+                        .await;
+                    match started {
+                        Ok(None) => None, // cancelled while queued: never runs
+                        Err(e) => {
                             tracing::error!(job = %job_id, "cannot mark job running: {e:#}");
+                            Some(Err(format!("the job could not be started: {e:#}")))
                         }
-                        let p = progress.clone();
-                        let inner2 = inner.clone();
-                        let limit = inner.timeout();
-                        let work = tokio::task::spawn_blocking(move || {
-                            let _permits = (admitted, worker);
-                            let _running = Count::up(&inner2.running);
-                            stoppable(&p, limit, |p| f(p))
-                        });
-                        Some(watch_job(&inner.store, &job_id, &progress, work, limit).await)
+                        Ok(Some(epoch)) => {
+                            progress.set_epoch(epoch);
+                            let p = progress.clone();
+                            let inner2 = inner.clone();
+                            let limit = inner.timeout();
+                            let work = tokio::task::spawn_blocking(move || {
+                                let _permits = (admitted, worker);
+                                let _running = Count::up(&inner2.running);
+                                stoppable(&p, limit, |p| f(p))
+                            });
+                            Some(watch_job(&inner.store, &job_id, &progress, work, limit).await)
+                        }
                     }
-                },
+                }
             };
             finish(&inner, &job_id, &progress, outcome).await;
         });

@@ -1,7 +1,7 @@
 //! A job's progress, its cancellation flag and commit gate ([`Progress`]), and its state as
 //! answered ([`JobStatus`]).
 
-use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicI64, AtomicU64, Ordering};
 use std::time::Duration;
 
 use serde::Serialize;
@@ -16,6 +16,7 @@ pub struct Progress {
     bits: AtomicU64,
     cancelled: AtomicBool,
     timed_out: AtomicBool,
+    retry: AtomicBool,
     gate: Option<Gate>,
 }
 
@@ -25,6 +26,9 @@ pub(super) struct Gate {
     pub(super) store: Store,
     pub(super) id: String,
     pub(super) runtime: tokio::runtime::Handle,
+    /// The claim of the job this worker runs (0 until it starts): every write it makes is
+    /// conditional on it (`store/jobs.rs`).
+    pub(super) epoch: AtomicI64,
 }
 
 /// The job was cancelled: it must stop and store nothing.
@@ -58,6 +62,32 @@ impl Progress {
     /// The job's id (`None` for a bare `Progress`, e.g. in tests).
     pub fn job_id(&self) -> Option<&str> {
         self.gate.as_ref().map(|g| g.id.as_str())
+    }
+
+    /// The claim of the job this worker runs (1 for the first; 0 for a bare `Progress`):
+    /// what a write of the job's outcome must carry (`store::JobDone::epoch`).
+    pub fn epoch(&self) -> i64 {
+        self.gate
+            .as_ref()
+            .map_or(0, |g| g.epoch.load(Ordering::Relaxed))
+    }
+
+    pub(super) fn set_epoch(&self, epoch: i64) {
+        if let Some(g) = &self.gate {
+            g.epoch.store(epoch, Ordering::Relaxed);
+        }
+    }
+
+    /// Says that the work failed because the database was unreachable (a cut connection,
+    /// a failover): the job is then put back in the queue to run again (when its input is
+    /// stored) instead of ending `failed`.
+    pub fn retry_later(&self) {
+        self.retry.store(true, Ordering::Relaxed);
+    }
+
+    /// True once [`Progress::retry_later`] was called.
+    pub fn wants_retry(&self) -> bool {
+        self.retry.load(Ordering::Relaxed)
     }
 
     /// True once the job must stop: a client cancelled it (`DELETE /v1/jobs/{id}` on any
@@ -104,15 +134,22 @@ impl Progress {
         let Some(g) = &self.gate else {
             return Ok(());
         };
-        match g.runtime.block_on(g.store.claim_job_commit(&g.id)) {
+        match g
+            .runtime
+            .block_on(g.store.claim_job_commit(&g.id, self.epoch()))
+        {
             Ok(true) => Ok(()),
             Ok(false) => {
                 self.cancel();
                 Err(Cancelled)
             }
             Err(e) => {
-                // Cannot tell: refuse to store rather than store behind a cancellation.
-                tracing::error!(job = %g.id, "cannot claim the job's commit: {e:#}");
+                // Cannot tell: refuse to store rather than store behind a cancellation; a
+                // database outage puts the job back in the queue.
+                tracing::warn!(job = %g.id, "cannot claim the job's commit: {e:#}");
+                if crate::store::database_outage(&e).is_some() {
+                    self.retry_later();
+                }
                 Err(Cancelled)
             }
         }

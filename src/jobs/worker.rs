@@ -2,9 +2,16 @@
 //! around its work: progress stored in its row, cancellation, takeover and the time limit
 //! noticed and passed to the work as its should-stop check (`numeric::stop`), outcome
 //! recorded.
+//!
+//! Database outages (a cut connection, a failover: `store::database_outage`) do not end a
+//! job: the writes of its bookkeeping are retried ([`persist`]) while this instance's lease
+//! holds, work whose own database access failed that way goes back to the queue, and a
+//! claim whose answer was lost is given back ([`Store::release_lost_claims`]).
 
+use std::future::Future;
 use std::sync::Arc;
-use std::time::Duration;
+use std::sync::atomic::AtomicI64;
+use std::time::{Duration, Instant};
 
 use serde_json::Value;
 use tokio::sync::OwnedSemaphorePermit;
@@ -21,7 +28,41 @@ pub(super) fn new_progress(inner: &Inner, id: &str) -> Arc<Progress> {
         store: inner.store.clone(),
         id: id.to_string(),
         runtime: tokio::runtime::Handle::current(),
+        epoch: AtomicI64::new(0),
     }))
+}
+
+/// Longest a job's bookkeeping write is retried through a database outage (while this
+/// instance's lease holds; a lapsed instance stops at once and its jobs are taken back).
+const OUTAGE_RETRY: Duration = Duration::from_secs(600);
+
+/// Runs `op` (a write of a job's bookkeeping), retrying it while it fails with a database
+/// outage, this instance's lease holds and the pool is open: waits 50 ms, doubling to 1 s,
+/// for at most [`OUTAGE_RETRY`]. The writes retried this way are idempotent (conditional on
+/// the job's state and claim), so a retry after an answer lost in transit changes nothing.
+pub(super) async fn persist<T, F, Fut>(store: &Store, what: &str, mut op: F) -> anyhow::Result<T>
+where
+    F: FnMut() -> Fut,
+    Fut: Future<Output = anyhow::Result<T>>,
+{
+    let t0 = Instant::now();
+    let mut wait = Duration::from_millis(50);
+    loop {
+        match op().await {
+            Ok(v) => return Ok(v),
+            Err(e)
+                if crate::store::database_outage(&e).is_some()
+                    && !store.fenced()
+                    && !store.pool().is_closed()
+                    && t0.elapsed() < OUTAGE_RETRY =>
+            {
+                tracing::warn!("{what}: {e:#}; retrying in {} ms", wait.as_millis());
+                tokio::time::sleep(wait).await;
+                wait = (wait * 2).min(Duration::from_secs(1));
+            }
+            Err(e) => return Err(e),
+        }
+    }
 }
 
 /// Runs a job's work `f` with the job's cancellation as its should-stop check: the cores it
@@ -58,28 +99,55 @@ pub(super) async fn finish(
             .entry("truecut_version")
             .or_insert_with(|| Value::from(crate::version()));
     }
+    let store = &inner.store;
+    let epoch = progress.epoch();
+    let mut requeued = false;
+    if matches!(outcome, Some(Err(_))) && progress.wants_retry() {
+        match persist(store, "cannot put the job back in the queue", || {
+            store.requeue_job(id, epoch)
+        })
+        .await
+        {
+            Ok(r) => requeued = r,
+            Err(e) => tracing::error!(job = %id, "cannot put the job back in the queue: {e:#}"),
+        }
+        if requeued {
+            tracing::warn!(job = %id, "the job met a database outage: back in the queue");
+        }
+    }
     let saved = match &outcome {
+        _ if requeued => Ok(true),
         None => Ok(false),
-        Some(Ok(v)) => inner.store.finish_job(id, "done", 1.0, Some(v), None).await,
+        Some(Ok(v)) => {
+            persist(store, "cannot store the job's result", || {
+                store.finish_job(id, epoch, "done", 1.0, Some(v), None)
+            })
+            .await
+        }
         Some(Err(msg)) => {
-            inner
-                .store
-                .finish_job(id, "failed", progress.get(), None, Some(msg))
-                .await
+            persist(store, "cannot store the job's failure", || {
+                store.finish_job(id, epoch, "failed", progress.get(), None, Some(msg))
+            })
+            .await
         }
     };
     if let Err(e) = saved {
         tracing::error!(job = %id, "cannot store job outcome: {e:#}");
     }
+    forget(inner, id);
+    // A worker is free: take the next queued job now rather than at the next poll (a deep
+    // queue of short jobs would otherwise run two per CLAIM_POLL on two workers).
+    inner.work.notify_one();
+}
+
+/// Forgets a job's live progress (its worker is done with it) and wakes a waiting shutdown.
+fn forget(inner: &Inner, id: &str) {
     inner
         .live
         .lock()
         .unwrap_or_else(|p| p.into_inner())
         .remove(id);
     inner.idle.notify_waiters();
-    // A worker is free: take the next queued job now rather than at the next poll (a deep
-    // queue of short jobs would otherwise run two per CLAIM_POLL on two workers).
-    inner.work.notify_one();
 }
 
 /// Takes stored jobs from the shared queue while this instance has a free worker (and room
@@ -89,6 +157,8 @@ pub(super) async fn claim_loop(inner: Arc<Inner>) {
         .runners()
         .map(|r| r.keys().cloned().collect())
         .unwrap_or_default();
+    // A claim failed: it may have taken a job whose answer was lost.
+    let mut lost_claim = false;
     loop {
         // Runners released (the server stopped or was dropped): claim nothing more.
         if inner.runners().is_none() {
@@ -99,21 +169,58 @@ pub(super) async fn claim_loop(inner: Arc<Inner>) {
         if inner.admission.is_closed() {
             return;
         }
-        if inner.workers.available_permits() > 0 && inner.admission.available_permits() > 0 {
+        if lost_claim {
+            let running: Vec<String> = inner
+                .live
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .keys()
+                .cloned()
+                .collect();
+            match inner.store.release_lost_claims(&running).await {
+                Ok(n) => {
+                    lost_claim = false;
+                    if n > 0 {
+                        tracing::warn!(jobs = n, "claims lost in transit: back in the queue");
+                    }
+                }
+                Err(e) => tracing::warn!("cannot look for lost claims yet: {e:#}"),
+            }
+        }
+        if !lost_claim
+            && inner.workers.available_permits() > 0
+            && inner.admission.available_permits() > 0
+        {
             match inner.store.claim_job(&kinds).await {
                 Ok(Some(job)) => {
+                    // Live from now on, so that a lost-claim sweep leaves it alone.
+                    let progress = new_progress(&inner, &job.id);
+                    progress.set_epoch(job.attempts);
+                    inner
+                        .live
+                        .lock()
+                        .unwrap_or_else(|p| p.into_inner())
+                        .insert(job.id.clone(), progress.clone());
                     // A synchronous request may have taken the slot meanwhile: wait for it.
-                    let Ok(admitted) = inner.admission.clone().acquire_owned().await else {
-                        return;
+                    // (Closed: shutting down, which gives the job back.)
+                    let permits = match (
+                        inner.admission.clone().acquire_owned().await,
+                        inner.workers.clone().acquire_owned().await,
+                    ) {
+                        (Ok(a), Ok(w)) => (a, w),
+                        _ => {
+                            forget(&inner, &job.id);
+                            return;
+                        }
                     };
-                    let Ok(worker) = inner.workers.clone().acquire_owned().await else {
-                        return;
-                    };
-                    tokio::spawn(run_claimed(inner.clone(), job, (admitted, worker)));
+                    tokio::spawn(run_claimed(inner.clone(), job, progress, permits));
                     continue;
                 }
                 Ok(None) => {}
-                Err(e) => tracing::error!("cannot claim a job: {e:#}"),
+                Err(e) => {
+                    lost_claim = true;
+                    tracing::warn!("cannot claim a job: {e:#}");
+                }
             }
         }
         tokio::select! {
@@ -127,14 +234,9 @@ pub(super) async fn claim_loop(inner: Arc<Inner>) {
 async fn run_claimed(
     inner: Arc<Inner>,
     job: ClaimedJob,
+    progress: Arc<Progress>,
     permits: (OwnedSemaphorePermit, OwnedSemaphorePermit),
 ) {
-    let progress = new_progress(&inner, &job.id);
-    inner
-        .live
-        .lock()
-        .unwrap_or_else(|p| p.into_inner())
-        .insert(job.id.clone(), progress.clone());
     let runner = inner.runners().and_then(|r| r.get(&job.kind).cloned());
     let p = progress.clone();
     let inner2 = inner.clone();
@@ -180,7 +282,8 @@ pub(super) async fn watch_job(
                 progress.time_out();
             }
             _ = tick.tick(), if !progress.is_cancelled() => {
-                if let Ok(false) = store.report_job_progress(id, progress.get()).await {
+                let epoch = progress.epoch();
+                if let Ok(false) = store.report_job_progress(id, epoch, progress.get()).await {
                     progress.cancel();
                 }
             }

@@ -12,8 +12,11 @@
 //! whichever instance claims it first ([`Store::claim_job`]: `FOR UPDATE SKIP LOCKED` on
 //! PostgreSQL, a conditional update on SQLite, so one claim wins); an in-process job (no
 //! input) belongs to its submitter from the start. Every later write by the worker (progress,
-//! commit gate, outcome) is conditional on `owner` still being this instance, so a worker
-//! whose job was taken away (its instance was judged gone) can no longer store anything.
+//! commit gate, outcome) is fenced in the same statement: `owner` is still this instance,
+//! `attempts` is still the claim the worker runs (its epoch: a job taken back and claimed
+//! again, even by the same instance, refuses the earlier claim's writes), and this
+//! instance's lease holds (`instances.rs`). So a worker whose job was taken away, or whose
+//! instance lapsed, can no longer store anything.
 //!
 //! Bounded storage (issue 25): a job's input is dropped (`NULL`) as soon as it ends, and
 //! [`Store::prune_jobs`] deletes the jobs that ended longer ago than the retention, so the
@@ -65,6 +68,9 @@ pub struct ClaimedJob {
     pub kind: String,
     /// Its stored input (JSON text).
     pub input: String,
+    /// Which claim of the job this is (1 for the first): the epoch every later write by
+    /// this worker carries, so a worker of an earlier claim can no longer write.
+    pub attempts: i64,
 }
 
 /// What the jobs table holds ([`Store::job_bytes`]).
@@ -138,23 +144,40 @@ impl Store {
         Ok(())
     }
 
-    /// Marks a queued job running (start time now). False when it is no longer queued (it
-    /// was cancelled meanwhile): the worker must then not run it.
-    pub async fn start_job(&self, id: &str) -> Result<bool> {
+    /// Marks a queued job of this instance running (start time now): its epoch (the claim
+    /// number, see the module doc), or `None` when it is no longer queued here (it was
+    /// cancelled meanwhile): the worker must then not run it.
+    pub async fn start_job(&self, id: &str) -> Result<Option<i64>> {
         let now = now_ms();
-        let n = sqlx::query(
+        let n: Option<i64> = sqlx::query_scalar(
             "UPDATE jobs SET state = 'running', started_at = $1, updated_at = $2, \
-             attempts = attempts + 1 WHERE id = $3 AND state = 'queued' AND owner = $4",
+             attempts = attempts + 1 WHERE id = $3 AND state = 'queued' AND owner = $4 \
+             RETURNING attempts",
         )
         .bind(now)
         .bind(now)
         .bind(id.to_string())
         .bind(self.instance().to_string())
-        .execute(&self.db)
+        .fetch_optional(&self.db)
         .await
-        .context("cannot mark the job running")?
-        .rows_affected();
-        Ok(n == 1)
+        .context("cannot mark the job running")?;
+        Ok(n)
+    }
+
+    /// The epoch of a job this instance runs (`running` or `storing`, owned here), `None`
+    /// otherwise: after a [`Store::start_job`] whose answer was lost (the connection cut),
+    /// tells whether it took effect.
+    pub async fn running_here(&self, id: &str) -> Result<Option<i64>> {
+        let n: Option<i64> = sqlx::query_scalar(
+            "SELECT attempts FROM jobs WHERE id = $1 AND owner = $2 \
+             AND state IN ('running', 'storing')",
+        )
+        .bind(id.to_string())
+        .bind(self.instance().to_string())
+        .fetch_optional(&self.db)
+        .await
+        .context("cannot read the job")?;
+        Ok(n)
     }
 
     /// Takes the oldest queued job with stored input whose kind is in `kinds`, marking it
@@ -177,7 +200,7 @@ impl Store {
              attempts = attempts + 1 \
              WHERE state = 'queued' AND id = (SELECT id FROM jobs WHERE state = 'queued' \
              AND input IS NOT NULL AND kind IN ({}) ORDER BY created_at, id LIMIT 1{lock}) \
-             RETURNING id, kind, input",
+             RETURNING id, kind, input, attempts",
             marks.join(", ")
         );
         let now = now_ms();
@@ -197,6 +220,7 @@ impl Store {
                 id: r.try_get(0)?,
                 kind: r.try_get(1)?,
                 input: r.try_get(2)?,
+                attempts: r.try_get(3)?,
             })
         })
         .transpose()
@@ -213,37 +237,42 @@ impl Store {
     }
 
     /// Stores a running job's progress, so every instance can answer it. False when the job
-    /// is no longer running on this instance (cancelled, or taken over after this instance
-    /// was judged gone): its worker should stop.
-    pub async fn report_job_progress(&self, id: &str, progress: f64) -> Result<bool> {
-        let n = sqlx::query(
+    /// is no longer running on this instance in claim `epoch` (cancelled, or taken back
+    /// after this instance was judged gone) or this instance's lease lapsed: its worker
+    /// should stop.
+    pub async fn report_job_progress(&self, id: &str, epoch: i64, progress: f64) -> Result<bool> {
+        let fence = super::instances::lease_held_sql(self.backend(), "$4");
+        let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET progress = $1, updated_at = $2 \
-             WHERE id = $3 AND owner = $4 AND state IN ('running', 'storing')",
-        )
+             WHERE id = $3 AND owner = $4 AND attempts = $5 AND state IN ('running', 'storing') \
+             AND {fence}"
+        )))
         .bind(progress)
         .bind(now_ms())
         .bind(id.to_string())
         .bind(self.instance().to_string())
+        .bind(epoch)
         .execute(&self.db)
         .await?
         .rows_affected();
         Ok(n == 1)
     }
 
-    /// Moves a running job of this instance to `storing` just before it writes what it
-    /// made. False when the job was cancelled (or is not running here), or when this
-    /// instance's lease expired (the fence, checked by the database in the same statement;
-    /// the job then goes back to the queue like a crashed instance's): the caller must then
-    /// store nothing.
-    pub async fn claim_job_commit(&self, id: &str) -> Result<bool> {
+    /// Moves a running job of this instance (claim `epoch`) to `storing` just before it
+    /// writes what it made. False when the job was cancelled (or is not running here in
+    /// that claim), or when this instance's lease expired (the fence, checked by the
+    /// database in the same statement; the job then goes back to the queue like a crashed
+    /// instance's): the caller must then store nothing.
+    pub async fn claim_job_commit(&self, id: &str, epoch: i64) -> Result<bool> {
         let fence = super::instances::lease_held_sql(self.backend(), "$3");
         let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = 'storing', updated_at = $1 \
-             WHERE id = $2 AND state = 'running' AND owner = $3 AND {fence}"
+             WHERE id = $2 AND state = 'running' AND owner = $3 AND attempts = $4 AND {fence}"
         )))
         .bind(now_ms())
         .bind(id.to_string())
         .bind(self.instance().to_string())
+        .bind(epoch)
         .execute(&self.db)
         .await
         .context("cannot update the job")?
@@ -251,21 +280,25 @@ impl Store {
         Ok(n == 1)
     }
 
-    /// Ends an unfinished job of this instance as `done` (with its result) or `failed` (with
-    /// its error). A job that was cancelled (or taken over) meanwhile keeps its state
-    /// (returns false).
+    /// Ends an unfinished job of this instance (claim `epoch`) as `done` (with its result)
+    /// or `failed` (with its error). A job that was cancelled or taken back meanwhile keeps
+    /// its state, and so does every job of an instance whose lease lapsed (returns false).
+    /// Idempotent: a retry after an answer lost to a cut connection changes nothing.
     pub async fn finish_job(
         &self,
         id: &str,
+        epoch: i64,
         state: &str,
         progress: f64,
         result: Option<&serde_json::Value>,
         error: Option<&str>,
     ) -> Result<bool> {
         let now = now_ms();
+        let fence = super::instances::lease_held_sql(self.backend(), "$8");
         let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = $1, progress = $2, result = $3, error = $4, updated_at = $5, \
-             finished_at = $6, input = NULL WHERE id = $7 AND owner = $8 AND state IN {UNFINISHED}"
+             finished_at = $6, input = NULL WHERE id = $7 AND owner = $8 AND attempts = $9 \
+             AND state IN {UNFINISHED} AND {fence}"
         )))
         .bind(state.to_string())
         .bind(progress)
@@ -275,11 +308,62 @@ impl Store {
         .bind(now)
         .bind(id.to_string())
         .bind(self.instance().to_string())
+        .bind(epoch)
         .execute(&self.db)
         .await
         .context("cannot update the job")?
         .rows_affected();
         Ok(n == 1)
+    }
+
+    /// Puts a stored job this instance runs (claim `epoch`) back in the queue, for any
+    /// instance to run again: its work met a database outage and could not store its
+    /// outcome. False when it is not this instance's to give back (cancelled, taken back,
+    /// in-process: no stored input). The claim still counts in `attempts`.
+    pub async fn requeue_job(&self, id: &str, epoch: i64) -> Result<bool> {
+        let n = sqlx::query(
+            "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
+             updated_at = $1 WHERE id = $2 AND owner = $3 AND attempts = $4 \
+             AND state IN ('running', 'storing') AND input IS NOT NULL",
+        )
+        .bind(now_ms())
+        .bind(id.to_string())
+        .bind(self.instance().to_string())
+        .bind(epoch)
+        .execute(&self.db)
+        .await
+        .context("cannot put the job back in the queue")?
+        .rows_affected();
+        Ok(n == 1)
+    }
+
+    /// Puts back in the queue the stored jobs the database says this instance runs but
+    /// which are not in `running` (the ids of the jobs its workers run): claims whose answer
+    /// was lost to a cut connection, which no worker of this instance will ever run. Call
+    /// from the claim loop only (between claims). Returns how many.
+    pub async fn release_lost_claims(&self, running: &[String]) -> Result<u64> {
+        let marks: Vec<String> = (0..running.len()).map(|i| format!("${}", i + 3)).collect();
+        let not_in = if marks.is_empty() {
+            String::new()
+        } else {
+            format!(" AND id NOT IN ({})", marks.join(", "))
+        };
+        let sql = format!(
+            "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
+             updated_at = $1 WHERE owner = $2 AND state = 'running' AND input IS NOT NULL{not_in}"
+        );
+        let mut q = sqlx::query(AssertSqlSafe(sql))
+            .bind(now_ms())
+            .bind(self.instance().to_string());
+        for id in running {
+            q = q.bind(id.clone());
+        }
+        let n = q
+            .execute(&self.db)
+            .await
+            .context("cannot release lost claims")?
+            .rows_affected();
+        Ok(n)
     }
 
     /// Cancels a queued or running job (any instance's): it ends `cancelled` at once and its

@@ -19,6 +19,7 @@ mod machines;
 mod measurements;
 mod model_versions;
 mod models;
+mod outage;
 mod storage;
 mod surfaces;
 
@@ -31,6 +32,7 @@ pub use machines::MachineSummary;
 pub use measurements::{Measurement, MeasurementSummary};
 pub use model_versions::{ModelVersion, ModelVersions, Rollback};
 pub use models::{JobDone, MODEL_FORMAT_VERSION, ModelStore, VERSIONS_KEPT, is_valid_id};
+pub use outage::{DatabaseOutage, database_outage};
 pub use storage::{
     StorageFailure, StorageState, check_data_dir, free_bytes, probe_writable, state_of,
     storage_failure,

@@ -53,6 +53,9 @@ pub struct JobDone<'a> {
     pub id: &'a str,
     /// Its result JSON.
     pub result: &'a serde_json::Value,
+    /// The claim the saving worker runs (`Progress::epoch`): a worker of an earlier claim
+    /// of the same job cannot save.
+    pub epoch: i64,
 }
 
 /// Aborts the process at the named point when `TRUECUT_FAULT_CRASH_AT` says so (crash
@@ -301,13 +304,15 @@ impl ModelStore {
                 let n = sqlx::query(sqlx::AssertSqlSafe(format!(
                     "UPDATE jobs SET state = 'done', progress = 1.0, result = $1, error = NULL, \
                      input = NULL, updated_at = $2, finished_at = $3 \
-                     WHERE id = $4 AND owner = $5 AND state = 'storing' AND {fence}"
+                     WHERE id = $4 AND owner = $5 AND state = 'storing' AND attempts = $6 \
+                     AND {fence}"
                 )))
                 .bind(result.to_string())
                 .bind(now)
                 .bind(now)
                 .bind(j.id.to_string())
                 .bind(self.instance.clone())
+                .bind(j.epoch)
                 .execute(&mut *tx)
                 .await?
                 .rows_affected();

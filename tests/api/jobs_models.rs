@@ -173,14 +173,14 @@ async fn only_the_jobs_of_gone_instances_are_taken_back() {
     let store = Store::open(dir.path(), None).await.unwrap();
     store.register_instance(2000).await.unwrap();
     store.insert_job("running-1", "x", None).await.unwrap();
-    assert!(store.start_job("running-1").await.unwrap());
+    assert_eq!(store.start_job("running-1").await.unwrap(), Some(1));
     store.insert_job("queued-1", "x", None).await.unwrap();
     store
         .insert_job("stored-1", "stored", Some("{}"))
         .await
         .unwrap();
     let claimed = store.claim_job(&["stored".into()]).await.unwrap().unwrap();
-    assert_eq!(claimed.id, "stored-1");
+    assert_eq!((claimed.id.as_str(), claimed.attempts), ("stored-1", 1));
     assert!(store.claim_job(&["stored".into()]).await.unwrap().is_none());
 
     // A second instance on the same data dir: the first is alive, nothing moves.
@@ -215,13 +215,103 @@ async fn only_the_jobs_of_gone_instances_are_taken_back() {
     assert_eq!((st.state.as_str(), st.attempts), ("queued", 1), "{st:?}");
     assert!(store2.live_instances().await.unwrap() == vec![store2.instance().to_string()]);
     // The gone instance's worker can no longer store anything for its jobs.
-    assert!(!store.claim_job_commit("stored-1").await.unwrap());
-    assert!(!store.report_job_progress("stored-1", 0.5).await.unwrap());
+    assert!(!store.claim_job_commit("stored-1", 1).await.unwrap());
+    assert!(!store.report_job_progress("stored-1", 1, 0.5).await.unwrap());
     let again = store2.claim_job(&["stored".into()]).await.unwrap().unwrap();
     assert_eq!(again.id, "stored-1");
     let st = state("stored-1").await;
     assert_eq!(st.instance.as_deref(), Some(store2.instance()));
     assert_eq!(st.attempts, 2);
+}
+
+/// Every write of a job's worker carries its claim (the epoch): once the job was taken
+/// back and claimed again, even by the same instance, the earlier claim's worker writes
+/// nothing. A claim whose answer was lost (no worker here runs it) is given back by the
+/// sweep; a job put back for a database outage is claimed again; the result write is
+/// idempotent.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn an_earlier_claim_of_a_job_can_no_longer_write() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = Store::open(dir.path(), None).await.unwrap();
+    store.register_instance(60_000).await.unwrap();
+    store.insert_job("j", "stored", Some("{}")).await.unwrap();
+    let kinds = ["stored".to_string()];
+    let first = store.claim_job(&kinds).await.unwrap().unwrap();
+    assert_eq!(first.attempts, 1);
+    // No worker here runs it (the claim's answer was lost): the sweep gives it back.
+    assert_eq!(store.release_lost_claims(&[]).await.unwrap(), 1);
+    let second = store.claim_job(&kinds).await.unwrap().unwrap();
+    assert_eq!(second.attempts, 2);
+    assert_eq!(
+        store.release_lost_claims(&["j".to_string()]).await.unwrap(),
+        0,
+        "a job a worker runs stays"
+    );
+    let result = json!({"x": 1});
+    assert!(!store.report_job_progress("j", 1, 0.5).await.unwrap());
+    assert!(!store.claim_job_commit("j", 1).await.unwrap());
+    assert!(
+        !store
+            .finish_job("j", 1, "done", 1.0, Some(&result), None)
+            .await
+            .unwrap()
+    );
+    assert!(!store.requeue_job("j", 1).await.unwrap());
+    assert!(store.report_job_progress("j", 2, 0.5).await.unwrap());
+    // Claim 2 met an outage: back in the queue, claim 3 ends it.
+    assert!(store.requeue_job("j", 2).await.unwrap());
+    let third = store.claim_job(&kinds).await.unwrap().unwrap();
+    assert_eq!(third.attempts, 3);
+    assert!(
+        store
+            .finish_job("j", 3, "done", 1.0, Some(&result), None)
+            .await
+            .unwrap()
+    );
+    // The same write again (its answer lost in transit) changes nothing.
+    assert!(
+        !store
+            .finish_job("j", 3, "failed", 0.0, None, Some("late"))
+            .await
+            .unwrap()
+    );
+    let rec = store.get_job("j").await.unwrap().unwrap();
+    assert_eq!((rec.state.as_str(), rec.attempts), ("done", 3));
+    assert_eq!(rec.result, Some(result));
+}
+
+/// An instance whose lease lapsed (no renewal within it) writes nothing for its jobs: no
+/// progress, no commit, no outcome; the database checks the lease in the same statement.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_lapsed_instance_writes_nothing_for_its_jobs() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = Store::open(dir.path(), None).await.unwrap();
+    store.register_instance(400).await.unwrap();
+    store.insert_job("j", "stored", Some("{}")).await.unwrap();
+    let claimed = store.claim_job(&["stored".into()]).await.unwrap().unwrap();
+    assert!(
+        store
+            .report_job_progress("j", claimed.attempts, 0.2)
+            .await
+            .unwrap()
+    );
+    tokio::time::sleep(Duration::from_millis(600)).await;
+    assert!(store.fenced());
+    assert!(
+        !store
+            .report_job_progress("j", claimed.attempts, 0.5)
+            .await
+            .unwrap()
+    );
+    assert!(!store.claim_job_commit("j", claimed.attempts).await.unwrap());
+    let done = store
+        .finish_job("j", claimed.attempts, "done", 1.0, Some(&json!({})), None)
+        .await
+        .unwrap();
+    assert!(!done);
+    let rec = store.get_job("j").await.unwrap().unwrap();
+    assert_eq!((rec.state.as_str(), rec.progress), ("running", 0.2));
+    assert!(store.claim_job(&["stored".into()]).await.unwrap().is_none());
 }
 
 async fn model_store(app: TestApp) {

@@ -16,6 +16,7 @@ mod crash;
 mod dashboard;
 mod decomposition;
 mod door;
+mod faults;
 mod fleet;
 mod gap;
 mod hardening;

@@ -297,8 +297,14 @@ pub(super) async fn train(
 /// saves the model as a new version in the same transaction that marks the job done.
 pub fn training_runner(state: AppState) -> Runner {
     let handle = tokio::runtime::Handle::current();
-    let sentence = |e: ApiError| e.detail().to_string();
     Arc::new(move |input: &str, progress: &Progress| {
+        // A database outage (503) puts the job back in the queue instead of failing it.
+        let sentence = |e: ApiError| {
+            if e.status() == axum::http::StatusCode::SERVICE_UNAVAILABLE {
+                progress.retry_later();
+            }
+            e.detail().to_string()
+        };
         let stored: StoredTraining = serde_json::from_str(input)
             .map_err(|e| format!("the stored job input is not a training request: {e}"))?;
         let req: TrainRequest = serde_json::from_str(&stored.body)
@@ -330,9 +336,15 @@ pub fn training_runner(state: AppState) -> Runner {
                 JobDone {
                     id: &id,
                     result: &result,
+                    epoch: progress.epoch(),
                 },
             ))
-            .map_err(|e| format!("the model was trained but could not be saved: {e:#}"))?;
+            .map_err(|e| {
+                if crate::store::database_outage(&e).is_some() {
+                    progress.retry_later();
+                }
+                format!("the model was trained but could not be saved: {e:#}")
+            })?;
         Ok(result)
     })
 }
