@@ -1,3 +1,6 @@
+//! Unit tests of the outage classification: which database errors are a cut connection or
+//! a pool wait (answered 503 with Retry-After) and which are not.
+
 use super::*;
 
 #[test]
