@@ -229,6 +229,9 @@ async fn the_body_budget_bounds_bytes_in_flight() {
         c.queue = 1;
     })
     .await;
+    // The surface exists, so the upload below passes the door's existence check and waits
+    // for body room.
+    seed_machine_and_surface(&app, "m", "s", 4, 4).await;
     let release = hold_workers(&app).await;
     // A 700 kB decomposition (64 samples and white space) holds its room while it waits
     // in the queue for a worker.

@@ -194,5 +194,5 @@ fn a_bad_min_body_rate_is_refused_by_the_command_line() {
         .err()
         .expect("refused")
         .to_string();
-    assert!(err.contains("is not a rate"), "{err}");
+    assert!(err.contains("the unit must be KiB or MiB"), "{err}");
 }

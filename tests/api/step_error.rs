@@ -237,7 +237,7 @@ async fn exact_refuses_an_oversize_chunked_body() {
     let mut answer = String::new();
     s.read_to_string(&mut answer).await.unwrap();
     assert!(answer.starts_with("HTTP/1.1 413"), "{answer}");
-    assert!(answer.contains("more than 4096 bytes"), "{answer}");
+    assert!(answer.contains("longer than 4096 bytes"), "{answer}");
 }
 
 /// Samples of a stored grid surface: flat grid → every step error is 0.
