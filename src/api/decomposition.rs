@@ -73,8 +73,10 @@ pub fn runner() -> Runner {
     })
 }
 
-/// Runs a decomposition on the worker pool; above [`MAX_SYNC`] samples, when `job_input`
-/// (the request body) is given, a stored job (202) that any instance may run. The direct
+/// Runs a decomposition on the worker pool; when `job_input` (the request body, the
+/// caller's role, and whether it asked for a job with `Prefer: respond-async`) is given and
+/// the signal has more than [`MAX_SYNC`] samples or a job was asked for, a stored job (202)
+/// that any instance may run. The direct
 /// answer is the `Decomposition` itself, so the stateless route writes its JSON bytes in one
 /// pass (no intermediate `serde_json::Value`: at 20,000 samples that pass cost as much as the
 /// bytes).
@@ -83,7 +85,7 @@ async fn run(
     x: Vec<f64>,
     method: Method,
     params: DecomposeParams,
-    job_input: Option<(&[u8], Option<Role>)>,
+    job_input: Option<(&[u8], Option<Role>, bool)>,
 ) -> ApiResult<Result<signal::Decomposition, Response>> {
     if x.len() > signal::decompose::MAX_SAMPLES {
         return Err(ApiError::payload_too_large(format!(
@@ -92,16 +94,18 @@ async fn run(
             signal::decompose::MAX_SAMPLES
         )));
     }
-    if let Some((body, role)) = job_input
-        && x.len() > MAX_SYNC
+    if let Some((body, role, asked)) = job_input
+        && (x.len() > MAX_SYNC || asked)
     {
-        super::auth::may_queue_job(
-            role,
-            &format!(
+        let why = if asked {
+            "the request asks for a job (Prefer: respond-async)".to_string()
+        } else {
+            format!(
                 "the signal has {} samples, more than the {MAX_SYNC} answered directly",
                 x.len()
-            ),
-        )?;
+            )
+        };
+        super::auth::may_queue_job(role, &why)?;
         let input = String::from_utf8(body.to_vec())
             .map_err(|_| ApiError::bad_request("the request body is not UTF-8 JSON"))?;
         let id = state.jobs.enqueue(JOB_KIND, input).await?;
@@ -116,6 +120,7 @@ async fn run(
 
 async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResult<Response> {
     let role = req.extensions().get::<Role>().copied();
+    let asked = super::auth::asks_for_job(req.headers());
     let body = read_body(req).await?;
     let r: DecomposeRequest = decode_json(&body)?;
     if r.signal.is_empty() {
@@ -125,7 +130,15 @@ async fn post_decompose(State(state): State<AppState>, req: Request) -> ApiResul
     }
     check_finite("signal", &r.signal)?;
     super::ranges::check_signal_mm("signal", &r.signal)?;
-    match run(&state, r.signal, r.method, r.params, Some((&body, role))).await? {
+    match run(
+        &state,
+        r.signal,
+        r.method,
+        r.params,
+        Some((&body, role, asked)),
+    )
+    .await?
+    {
         Ok(v) => Ok(ApiJson(Versioned::new(v)).into_response()),
         Err(accepted) => Ok(accepted),
     }

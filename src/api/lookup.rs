@@ -40,6 +40,23 @@ pub async fn require_surface(state: &AppState, machine: &Id, surface: &Id) -> Ap
     )))
 }
 
+/// Like [`require_surface`], the surface shared with other requests (one copy per surface,
+/// [`crate::store::Store::get_surface_shared`]): for uploads, which only read it.
+pub async fn require_surface_shared(
+    state: &AppState,
+    machine: &Id,
+    surface: &Id,
+) -> ApiResult<std::sync::Arc<Surface>> {
+    if let Some(s) = state.store.get_surface_shared(machine, surface).await? {
+        return Ok(s);
+    }
+    require_machine(state, machine).await?;
+    Err(ApiError::not_found(format!(
+        "surface '{surface}' of machine '{machine}' does not exist: \
+         PUT /v1/machines/{machine}/surfaces/{surface} first"
+    )))
+}
+
 /// 404 as [`require_machine`] unless the machine exists; its definition is not read.
 pub async fn require_machine_exists(state: &AppState, machine: &Id) -> ApiResult<()> {
     if state.store.machine_exists(machine).await? {

@@ -15,7 +15,9 @@ use super::auth::{RequireAdmin, RequireWrite};
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, is_csv_body};
 use super::intake::parse_streaming;
-use super::lookup::{require_measurement, require_surface, require_surface_grid};
+use super::lookup::{
+    require_measurement, require_surface, require_surface_grid, require_surface_shared,
+};
 use super::upload::{ProbeData, read_csv_upload, read_json_upload};
 use crate::api::id::{Id, PathIds};
 use crate::signal::flyers::{FlyerParams, suspects};
@@ -78,7 +80,7 @@ async fn post_measurement(
         (None, Some(id)) => id,
         (None, None) => Id::parse("measurement", &uuid::Uuid::now_v7().to_string())?,
     };
-    let surf = require_surface(&state, &machine, &surface).await?;
+    let surf = require_surface_shared(&state, &machine, &surface).await?;
     let (nu, nv) = (surf.nu, surf.nv);
     if data.len() != n {
         return Err(ApiError::bad_request(format!(
@@ -92,36 +94,31 @@ async fn post_measurement(
     }
     refuse_taken(&state, &machine, &surface, &id).await?;
     let limits = state.limits;
-    let (deviations, points) = tokio::task::spawn_blocking(move || match data {
-        ProbeData::Deviations(d) => limits
-            .check_deviations("deviations", &d)
-            .map(|()| (d, None)),
-        ProbeData::Points(p) => {
-            super::ranges::check_coords("points", &p)?;
-            limits
-                .pair_points(&p, &surf.points, &surf.normals, surf.nu)
-                .map(|d| (d, Some(p)))
-        }
+    // One short blocking task (not a worker-pool slot: an upload is never turned away
+    // because decompositions fill the pool): pairing, the flyer search, and the record.
+    let record = (id.to_string(), machine.to_string(), surface.to_string());
+    let (m, outliers) = tokio::task::spawn_blocking(move || {
+        let (deviations, points) = match data {
+            ProbeData::Deviations(d) => limits
+                .check_deviations("deviations", &d)
+                .map(|()| (d, None))?,
+            ProbeData::Points(p) => {
+                super::ranges::check_coords("points", &p)?;
+                let d = limits.pair_points(&p, &surf.points, &surf.normals, surf.nu)?;
+                (d, Some(p))
+            }
+        };
+        drop(surf);
+        let outliers = suspects(&deviations, Some((nu, nv)), &FlyerParams::default()).0;
+        let m = Measurement::new(record.0, record.1, record.2, deviations, points);
+        Ok::<_, ApiError>((m, outliers))
     })
     .await
     .map_err(ApiError::internal)??;
-    let m = Measurement::new(
-        id.to_string(),
-        machine.to_string(),
-        surface.to_string(),
-        deviations,
-        points,
-    );
-    let devs = m.deviations.clone();
-    // Like the parse above, a short blocking task rather than a worker-pool slot: an upload
-    // is never turned away because decompositions fill the pool.
-    let outliers = tokio::task::spawn_blocking(move || {
-        suspects(&devs, Some((nu, nv)), &FlyerParams::default()).0
-    })
-    .await
-    .map_err(ApiError::internal)?;
     let warnings = flyer_warnings(&outliers, &m.deviations, nu);
-    state.store.insert_measurement(&m).await?;
+    let (id, n, max_abs, mean_abs) = (m.id.clone(), m.deviations.len(), m.max_abs, m.mean_abs);
+    // The arrays go into the record's BLOBs and are dropped before the write.
+    state.store.insert_measurement_owned(m).await?;
     Ok((
         StatusCode::CREATED,
         [(
@@ -129,7 +126,7 @@ async fn post_measurement(
             format!("/v1/machines/{machine}/surfaces/{surface}/measurements/{id}"),
         )],
         ApiJson(json!({
-            "id": m.id, "n": m.deviations.len(), "max_abs": m.max_abs, "mean_abs": m.mean_abs,
+            "id": id, "n": n, "max_abs": max_abs, "mean_abs": mean_abs,
             "outliers": outliers, "warnings": warnings,
         })),
     )

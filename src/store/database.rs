@@ -39,6 +39,8 @@ pub struct Store {
     data_dir: PathBuf,
     instance: String,
     models: ModelStore,
+    /// Nominal surfaces shared between requests (`surface_cache.rs`).
+    pub(crate) surfaces: super::surface_cache::SurfaceCache,
 }
 
 /// Milliseconds since the Unix epoch (record timestamps).
@@ -258,6 +260,7 @@ impl Store {
             data_dir: data_dir.to_path_buf(),
             instance,
             models,
+            surfaces: Default::default(),
         })
     }
 

@@ -72,6 +72,28 @@ impl Measurement {
 impl Store {
     /// Stores a new measurement (one row, arrays as BLOBs). Fails if the id exists.
     pub async fn insert_measurement(&self, m: &Measurement) -> Result<()> {
+        self.insert_measurement_blobs(
+            m,
+            encode_f64s(&m.deviations),
+            m.points.as_deref().map(encode_points),
+        )
+        .await
+    }
+
+    /// Like [`Store::insert_measurement`], taking the measurement: its arrays are dropped once
+    /// encoded, so a large upload holds its BLOBs, not its arrays beside them, while written.
+    pub async fn insert_measurement_owned(&self, mut m: Measurement) -> Result<()> {
+        let deviations = encode_f64s(&std::mem::take(&mut m.deviations));
+        let points = m.points.take().map(|p| encode_points(&p));
+        self.insert_measurement_blobs(&m, deviations, points).await
+    }
+
+    async fn insert_measurement_blobs(
+        &self,
+        m: &Measurement,
+        deviations: Vec<u8>,
+        points: Option<Vec<u8>>,
+    ) -> Result<()> {
         sqlx::query(
             "INSERT INTO measurements (machine, surface, id, n, max_abs, mean_abs, deviations, \
              points, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
@@ -79,11 +101,11 @@ impl Store {
         .bind(m.machine.clone())
         .bind(m.surface.clone())
         .bind(m.id.clone())
-        .bind(i64::try_from(m.deviations.len())?)
+        .bind(i64::try_from(deviations.len() / 8)?)
         .bind(m.max_abs)
         .bind(m.mean_abs)
-        .bind(encode_f64s(&m.deviations))
-        .bind(m.points.as_deref().map(encode_points))
+        .bind(deviations)
+        .bind(points)
         .bind(now_ms())
         .execute(&self.db)
         .await

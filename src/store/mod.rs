@@ -21,6 +21,7 @@ mod model_versions;
 mod models;
 mod outage;
 mod storage;
+mod surface_cache;
 mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};

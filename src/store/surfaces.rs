@@ -94,6 +94,7 @@ impl Store {
             .await?;
         }
         tx.commit().await?;
+        self.surfaces.forget(&s.machine, &s.surface);
         Ok(created)
     }
 
@@ -118,6 +119,56 @@ impl Store {
             normals: decode_points(&normals)?,
             tool_radius: row.try_get(4)?,
         }))
+    }
+
+    /// The surface, shared with other requests (one copy per surface: `surface_cache.rs`),
+    /// or `None` if the machine or surface does not exist. The row's `(updated_at, nu, nv)` is
+    /// read on every call, so a surface replaced through another instance is read afresh.
+    pub async fn get_surface_shared(
+        &self,
+        machine: &str,
+        surface: &str,
+    ) -> Result<Option<std::sync::Arc<Surface>>> {
+        let stamp = |row: &sqlx::any::AnyRow| -> Result<super::surface_cache::Stamp> {
+            Ok((
+                row.try_get(0)?,
+                to_usize(row.try_get(1)?)?,
+                to_usize(row.try_get(2)?)?,
+            ))
+        };
+        let sql = "SELECT updated_at, nu, nv FROM surfaces WHERE machine = $1 AND id = $2";
+        let read_stamp = || async {
+            let row = sqlx::query(sql)
+                .bind(machine.to_string())
+                .bind(surface.to_string())
+                .fetch_optional(&self.db)
+                .await?;
+            row.as_ref().map(stamp).transpose()
+        };
+        let Some(now) = read_stamp().await? else {
+            self.surfaces.forget(machine, surface);
+            return Ok(None);
+        };
+        if let Some(s) = self.surfaces.get(machine, surface, now) {
+            return Ok(Some(s));
+        }
+        // One reader per miss: requests arriving together wait and then share its copy.
+        let _loading = self.surfaces.loading.lock().await;
+        let Some(now) = read_stamp().await? else {
+            return Ok(None);
+        };
+        if let Some(s) = self.surfaces.get(machine, surface, now) {
+            return Ok(Some(s));
+        }
+        let Some(s) = self.get_surface(machine, surface).await? else {
+            return Ok(None);
+        };
+        let s = std::sync::Arc::new(s);
+        // Kept only if the row did not change while it was read.
+        if read_stamp().await? == Some(now) {
+            self.surfaces.put(now, s.clone());
+        }
+        Ok(Some(s))
     }
 
     /// The surface's grid size `(nu, nv)` without its arrays, or `None` if the machine or
@@ -226,6 +277,7 @@ impl Store {
             .await?
             .rows_affected();
         tx.commit().await?;
+        self.surfaces.forget(machine, surface);
         self.models().remove_surface_files(machine, surface).await?;
         Ok(n > 0)
     }

@@ -428,6 +428,24 @@ async fn a_decomposition_job_gives_the_same_bits_alone_or_beside_two_others() {
     assert_eq!(r.status(), 200);
     let direct: Value = r.json().await.unwrap();
     assert_eq!(direct["truecut_version"], truecut::version());
+    // Asked for a job (Prefer: respond-async) at a size answered directly: a stored job,
+    // whose result is the direct answer, bit for bit.
+    let r = app
+        .client
+        .post(app.url("/v1/decompose"))
+        .header("prefer", "respond-async")
+        .json(&json!({"signal": long_signal(300, 0)}))
+        .send()
+        .await
+        .unwrap();
+    assert_eq!(r.status(), 202);
+    let id = r.json::<Value>().await.unwrap()["job"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let job = app.wait_job(&id).await;
+    assert_eq!(job["state"], "done", "{job}");
+    same_numbers("direct vs Prefer: respond-async", &direct, &job["result"]);
 }
 
 /// Probe flyers (openapi.yaml): the upload warns, the decomposition names them, and the

@@ -27,8 +27,14 @@ use crate::instances::{Instance, start};
 
 /// Duration of the faults when `TRUECUT_FAULT_TEST_S` is not set.
 const DEFAULT_SECS: u64 = 180;
-/// Samples of a decomposition job's signal (above the 250,000 answered synchronously).
-const JOB_SAMPLES: usize = 250_001;
+/// Samples of a decomposition job's signal, queued as a stored job with `Prefer:
+/// respond-async`. Two clients got 182 such jobs done in a 180 s run at load 4–6 (about 2 s
+/// a job). 250,001-sample jobs (the size queued without asking) took about 12 s each on the
+/// debug build in the same conditions (30 in 180 s), so with an instance killed every 12 s
+/// (each one every 36 s) a job was now and then interrupted on three claims in a row, and
+/// the guard against a job that crashes every instance it runs on (`jobs::MAX_ATTEMPTS`, 3
+/// claims) failed it, as it is meant to.
+const JOB_SAMPLES: usize = 60_000;
 /// Points of the uploads' surface (5 × 5).
 const GRID: usize = 5;
 
@@ -169,6 +175,9 @@ impl Fleet {
                 rq = rq
                     .header("content-type", "application/json")
                     .body(b.clone());
+            }
+            if path == "/v1/decompose" {
+                rq = rq.header("prefer", "respond-async");
             }
             match rq.send().await {
                 Ok(r) => {
@@ -416,7 +425,6 @@ async fn look(conn: &mut sqlx::PgConnection, seen: &mut HashMap<String, Seen>) -
     Ok(())
 }
 
-#[ignore = "NOT MET on the merged code (issue 25 item 2 open): the counts miss the goal; run with --ignored --nocapture to see them"]
 #[tokio::test(flavor = "multi_thread", worker_threads = 4)]
 async fn three_instances_ride_out_kill9_and_connection_cuts() {
     let Ok(base) = std::env::var("TRUECUT_TEST_PG") else {
@@ -634,8 +642,14 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
             .chunks_exact(8)
             .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
             .collect();
-        // (the service's JSON parse may round the last bit differently from Rust's)
-        if got.len() != want.len() || got.iter().zip(&want).any(|(g, w)| (g - w).abs() > 1e-12) {
+        // Bit for bit: the service parses JSON numbers correctly rounded (serde_json's
+        // float_roundtrip), so what the client sent is what is stored.
+        if got.len() != want.len()
+            || got
+                .iter()
+                .zip(&want)
+                .any(|(g, w)| g.to_bits() != w.to_bits())
+        {
             wrong_content += 1;
         }
         *stored.entry(id).or_default() += 1;
@@ -779,9 +793,16 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
     drop(db);
 }
 
-/// Queues a decomposition job through `app`; its id.
+/// Queues a decomposition job through `app` (`Prefer: respond-async`); its id.
 async fn queue_decompose(app: &crate::helpers::TestApp, body: &Value) -> String {
-    let r = app.post_json("/v1/decompose", body).await;
+    let r = app
+        .client
+        .post(app.url("/v1/decompose"))
+        .header("prefer", "respond-async")
+        .json(body)
+        .send()
+        .await
+        .unwrap();
     assert_eq!(r.status(), 202);
     r.json::<Value>().await.unwrap()["job"]
         .as_str()
@@ -871,44 +892,44 @@ async fn a_connection_cut_mid_upload_answers_503_and_the_retry_is_stored() {
     assert_eq!(ids, vec!["cut-1"]);
 }
 
-/// A stored job whose bookkeeping writes are cut (its progress reports and the write of its
-/// result wait on a lock this test holds, and their backends are terminated, again and
-/// again) is not failed: the writes are retried on a new connection, and the job ends done
-/// after one claim with the bits of the same input run undisturbed.
-#[ignore = "fails on the merged code (the job never tried to write its result within 120 s); issue 25 item 2 is open: run with --ignored"]
+/// A stored job whose result write is cut (the write waits on a lock this test holds and
+/// its backend is terminated, again and again) is not failed: the write is retried on a new
+/// connection, and the job ends done after one claim with the bits of the same input run
+/// undisturbed. Only the result write waits: a trigger of the test's schema takes an
+/// advisory lock the test holds whenever a job row gets a result, so the job's progress
+/// writes, the heartbeat's reaper and the other bookkeeping go on as in a real cut.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_job_whose_result_write_is_cut_is_retried_not_failed() {
     let Some(app) = crate::helpers::spawn_app_pg().await else {
         return;
     };
     let url = app.config.database_url.clone().unwrap();
-    let body = json!({"signal": job_signal(7)});
-    let id = queue_decompose(&app, &body).await;
-    // Claimed first (a claim waiting on the lock would be cut too, and the job never run).
-    let t0 = Instant::now();
-    loop {
-        let j: Value = app
-            .get(&format!("/v1/jobs/{id}"))
-            .await
-            .json()
-            .await
-            .unwrap();
-        if j["state"] == "running" {
-            break;
-        }
-        assert_eq!(j["state"], "queued", "{j}");
-        assert!(t0.elapsed() < Duration::from_secs(30), "never claimed: {j}");
-        tokio::time::sleep(Duration::from_millis(20)).await;
-    }
     let mut lock = sqlx::postgres::PgConnection::connect(&url).await.unwrap();
-    lock.execute("BEGIN").await.unwrap();
-    // Writes wait (reads do not): progress, the result, the reaper.
-    lock.execute("LOCK TABLE jobs IN EXCLUSIVE MODE")
+    // Lock key: the test's own (the schema's tables are its own too).
+    let key: i64 = 0x7275_6375_7400_0001;
+    lock.execute(sqlx::AssertSqlSafe(format!(
+        "CREATE FUNCTION result_waits() RETURNS trigger LANGUAGE plpgsql AS $$ BEGIN \
+         IF NEW.result IS NOT NULL AND OLD.result IS NULL THEN \
+         PERFORM pg_advisory_xact_lock({key}); END IF; RETURN NEW; END $$"
+    )))
+    .await
+    .unwrap();
+    lock.execute(
+        "CREATE TRIGGER result_waits BEFORE UPDATE ON jobs FOR EACH ROW \
+         EXECUTE FUNCTION result_waits()",
+    )
+    .await
+    .unwrap();
+    sqlx::query("SELECT pg_advisory_lock($1)")
+        .bind(key)
+        .execute(&mut lock)
         .await
         .unwrap();
+    let body = json!({"signal": job_signal(7)});
+    let id = queue_decompose(&app, &body).await;
     let t0 = Instant::now();
     let (mut results_cut, mut others_cut) = (0, 0);
-    while results_cut < 2 {
+    while results_cut < 3 {
         assert!(
             t0.elapsed() < Duration::from_secs(120),
             "the job never tried to write its result"
@@ -922,7 +943,19 @@ async fn a_job_whose_result_write_is_cut_is_retried_not_failed() {
             }
         }
     }
-    lock.execute("ROLLBACK").await.unwrap();
+    // Still running (its write is being retried), not failed or re-queued.
+    let j: Value = app
+        .get(&format!("/v1/jobs/{id}"))
+        .await
+        .json()
+        .await
+        .unwrap();
+    assert_eq!(j["state"], "running", "{j}");
+    sqlx::query("SELECT pg_advisory_unlock($1)")
+        .bind(key)
+        .execute(&mut lock)
+        .await
+        .unwrap();
     let done = app.wait_job(&id).await;
     assert_eq!(done["state"], "done", "{done}");
     assert_eq!(done["attempts"], 1, "{done}");
