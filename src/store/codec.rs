@@ -45,8 +45,12 @@ pub fn decode_points(bytes: &[u8]) -> Result<Vec<[f64; 3]>> {
             bytes.len()
         );
     }
-    let flat = decode_f64s(bytes)?;
-    Ok(flat.chunks_exact(3).map(|c| [c[0], c[1], c[2]]).collect())
+    // Straight from the bytes (no flat copy in between: a surface's arrays are large).
+    let f = |b: &[u8]| f64::from_le_bytes(b.try_into().expect("8 bytes"));
+    Ok(bytes
+        .chunks_exact(24)
+        .map(|c| [f(&c[0..8]), f(&c[8..16]), f(&c[16..24])])
+        .collect())
 }
 
 #[cfg(test)]

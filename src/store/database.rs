@@ -41,6 +41,10 @@ pub struct Store {
     models: ModelStore,
     /// Nominal surfaces shared between requests (`surface_cache.rs`).
     pub(crate) surfaces: super::surface_cache::SurfaceCache,
+    /// Taken by a measurement write of more than [`super::measurements::LARGE_WRITE`] bytes of
+    /// BLOBs: such writes go one at a time, so the ones waiting hold their arrays only, not
+    /// the encoded BLOBs and the driver's bound copies too.
+    pub(crate) large_writes: Arc<tokio::sync::Mutex<()>>,
 }
 
 /// Milliseconds since the Unix epoch (record timestamps).
@@ -261,6 +265,7 @@ impl Store {
             instance,
             models,
             surfaces: Default::default(),
+            large_writes: Arc::default(),
         })
     }
 

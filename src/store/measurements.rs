@@ -69,6 +69,10 @@ impl Measurement {
     }
 }
 
+/// BLOB bytes above which a measurement write waits for its turn (16 MiB: about 500,000
+/// points with their deviations).
+pub(crate) const LARGE_WRITE: usize = 16 << 20;
+
 impl Store {
     /// Stores a new measurement (one row, arrays as BLOBs). Fails if the id exists.
     pub async fn insert_measurement(&self, m: &Measurement) -> Result<()> {
@@ -82,7 +86,17 @@ impl Store {
 
     /// Like [`Store::insert_measurement`], taking the measurement: its arrays are dropped once
     /// encoded, so a large upload holds its BLOBs, not its arrays beside them, while written.
+    /// Writes of more than [`LARGE_WRITE`] bytes go one at a time on this instance and are
+    /// encoded only when their turn comes (the database writes one at a time anyway on
+    /// SQLite; the driver and SQLite each copy the BLOBs of a bound statement while it waits
+    /// for the database's lock).
     pub async fn insert_measurement_owned(&self, mut m: Measurement) -> Result<()> {
+        let bytes = m.deviations.len() * 8 + m.points.as_ref().map_or(0, |p| p.len() * 24);
+        let _turn = if bytes > LARGE_WRITE {
+            Some(self.large_writes.lock().await)
+        } else {
+            None
+        };
         let deviations = encode_f64s(&std::mem::take(&mut m.deviations));
         let points = m.points.take().map(|p| encode_points(&p));
         self.insert_measurement_blobs(&m, deviations, points).await
