@@ -123,7 +123,7 @@ const GOUGE_WEIGHT_MM: f64 = 1e4;
 
 impl CornerScore {
     /// The search's objective (mm³) at corner `spot`.
-    fn objective(&self, spot: &CornerSpot) -> f64 {
+    pub(super) fn objective(&self, spot: &CornerSpot) -> f64 {
         let excess = if spot.outside {
             0.0
         } else {
@@ -396,7 +396,7 @@ pub(super) fn search(
     base: &[[f64; 3]],
     corners: &[CornerSpot],
     orig_periods: usize,
-) -> Result<(CornerResult, Vec<[f64; 3]>, Eval), Error> {
+) -> Result<(CornerResult, Vec<[f64; 3]>, Vec<f64>, Eval), Error> {
     let n = corners.len();
     let mut theta = vec![[0.0f64; 3]; n];
     let eval = |th: &[[f64; 3]]| -> Result<(Vec<[f64; 3]>, Eval), Error> {
@@ -493,6 +493,7 @@ pub(super) fn search(
             simulations,
         },
         pts,
+        split_feeds(&run.reference, &run.base_feed, corners, &theta),
         cur_eval,
     ))
 }

@@ -44,6 +44,7 @@
 //! feed of the line's first block.
 
 mod corners;
+mod ilc;
 mod limits;
 mod measure;
 mod notes;
@@ -397,8 +398,13 @@ pub fn predistort_sided(
         run.sigma = corners::split_values(&run.sigma, &spots, |k| [run.sigma[k]; 2]);
         lines = corners::split_values(&lines, &spots, |k| [lines[k], next_line(&lines, k)]);
         run.lines = lines.clone();
-        let (res, pts, e) = corners::search(&run, &cur, &spots, run.orig_periods)?;
+        let (mut res, pts, feeds, e) = corners::search(&run, &cur, &spots, run.orig_periods)?;
         iterations += res.simulations;
+        let fixed_point = |j: usize| run.kept.contains_key(&run.lines[j]);
+        let (pts, e, ilc_out) =
+            ilc::refine(&run, pts, &feeds, e, &spots, &res.before, &fixed_point)?;
+        iterations += ilc_out.simulations;
+        res.after = corners::score(&run.reference, &spots, &e);
         cur = pts;
         cur_eval = e;
         corner_result = Some(res);
