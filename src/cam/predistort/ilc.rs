@@ -22,13 +22,20 @@
 //! With `J_c` the residuals' Jacobian in the corner's point offsets `θ_c` (two in-plane
 //! directions per point), the step is the Levenberg–Marquardt (norm-optimal ILC) update
 //! `θ_c ← θ_c − (J_cᵀJ_c + λ_c·(diag J_cᵀJ_c + εI))⁻¹ J_cᵀ r_c` (Amann, Owens & Rogers 1996
-//! eq. 8 with the lifted plant `J_c`; Marquardt 1963 for `λ_c`). Jacobian columns of the even
+//! with the lifted plant `J_c`; Marquardt 1963 for `λ_c`). Jacobian columns of the even
 //! and of the odd corners are measured in one simulation per column each (a point moves only
 //! its own window's residuals, the nearest other window being two corners away). A corner's
-//! step is kept when its objective (as the corner stage judges it: distance-weighted squared
-//! error, the squared max, the gouge) falls, it keeps the tool out of the material and within
-//! its share of [`ILC_TIME_BUDGET`], and the whole program stays within it; then
-//! `λ_c` falls threefold, otherwise the step is taken back and `λ_c` rises fourfold.
+//! step is tried when its objective (as the corner stage judges it: distance-weighted squared
+//! error, the squared max, the gouge) falls, it keeps the tool out of the material (at an
+//! inside corner within 0.9 × [`GOUGE_LIMIT_MM`] or its present offset; at an outside corner
+//! no deeper into the turn than when the stage began) and within its share of
+//! [`ILC_TIME_BUDGET`]. The tried corners' steps are then simulated together (a corner's moves
+//! reach into its neighbours' windows) and kept when every corner still passes those checks
+//! and the objectives' sum falls (or each corner's own does); corners that fail are dropped
+//! and the rest tried again, twice at most. A kept corner's `λ_c` falls threefold, the others'
+//! rise fourfold. Moving `Q` moves the stretch of the block `Q → P_in`, whose feed therefore
+//! follows it (the original's top speed over that stretch, as the corner stage sets it), so
+//! that no block runs slower than the original did along its stretch.
 //!
 //! Reference: Amann, Owens & Rogers 1996 (norm-optimal ILC); Marquardt 1963.
 
@@ -448,3 +455,6 @@ pub(super) fn refine(
     }
     Ok((pts, cur, outcome))
 }
+
+#[cfg(test)]
+mod tests;

@@ -36,7 +36,10 @@
 //! outside the turn; the material side from G41/G42, without them every corner an outside
 //! corner whose outer side is free: [`predistort_sided`]) or past the corner's share of
 //! [`TIME_BUDGET`]; iteration steps that gouge at such a corner, or take the program past the
-//! budget, are taken back.
+//! budget, are taken back. Then the corner-window ILC (module `ilc`) moves every point near
+//! each such corner (the braking and accelerating stretches with the three split points) by
+//! Levenberg–Marquardt steps on the simulation's Jacobian (norm-optimal ILC on the lifted
+//! system), under the same gouge rule and a 14 % time budget for both stages together.
 //! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
 //!
 //! Bad cases: machines with rotary axes (`xyzac_table`) and programs with dwells (G4) are
