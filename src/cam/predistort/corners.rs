@@ -388,6 +388,10 @@ const DIRS: [[f64; 3]; 6] = [
     [0.0, -1.0, 0.0],
 ];
 
+/// What [`search`] returns: its outcome, the split points, their programmed feeds (mm/min,
+/// as [`Run::evaluate_with`] takes them) and their simulation.
+pub(super) type Searched = (CornerResult, Vec<[f64; 3]>, Vec<f64>, Eval);
+
 /// Pattern search of `(δ_in, δ_out, L)` of every corner (module docs) on the points `base`,
 /// evaluated by `run` (whose per-point data are already split). `orig_periods` is the
 /// original program's length in periods.
@@ -396,7 +400,7 @@ pub(super) fn search(
     base: &[[f64; 3]],
     corners: &[CornerSpot],
     orig_periods: usize,
-) -> Result<(CornerResult, Vec<[f64; 3]>, Vec<f64>, Eval), Error> {
+) -> Result<Searched, Error> {
     let n = corners.len();
     let mut theta = vec![[0.0f64; 3]; n];
     let eval = |th: &[[f64; 3]]| -> Result<(Vec<[f64; 3]>, Eval), Error> {
