@@ -63,7 +63,8 @@ const SIDE_POINTS: usize = 10;
 /// Farthest a moving point lies from its corner, mm.
 const REACH_MM: f64 = 3.0;
 
-/// Most ILC steps (each: the Jacobian, then one or two simulations).
+/// Most ILC steps (each: the Jacobian when the step before was kept, then one to three
+/// simulations of the step).
 const MAX_STEPS: usize = 14;
 
 /// Levenberg–Marquardt damping of the first step (relative to the diagonal of `JᵀJ`).
@@ -88,6 +89,9 @@ pub(super) struct IlcOutcome {
     pub simulations: usize,
 }
 
+/// The moving points of each corner (`Q`, `P_in`, `P_out` and up to [`SIDE_POINTS`] within
+/// [`REACH_MM`] on either side, none of a neighbour's, none `fixed`, never the end) and the
+/// corner's plane (`d_in` and the part of `d_out` normal to it).
 fn windows(pts: &[[f64; 3]], corners: &[CornerSpot], fixed: &dyn Fn(usize) -> bool) -> Vec<Window> {
     let m = pts.len();
     let mut out: Vec<Window> = Vec::with_capacity(corners.len());
@@ -128,8 +132,9 @@ fn windows(pts: &[[f64; 3]], corners: &[CornerSpot], fixed: &dyn Fn(usize) -> bo
     out
 }
 
-/// Residuals of corner `spot` on the simulation `e` (module docs): [`GRID`] error vectors
-/// (mm·√mm) equally spaced in tool path length over the window, then the gouge terms.
+/// Residuals of corner `spot` on the simulation `e` (module docs): at each of [`GRID`] points
+/// equally spaced in tool path length over the window, the error vector's three components
+/// times `√Δs` (mm·√mm) and the gouge term (zero at an outside corner).
 fn residuals(reference: &Reference, spot: &CornerSpot, e: &Eval, tips: &[[f64; 3]]) -> Vec<f64> {
     let feet = &e.feet;
     let n = feet.len();
