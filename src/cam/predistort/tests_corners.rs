@@ -369,3 +369,50 @@ fn inside_corners_do_not_gouge() {
     );
     assert!(out.compensated.gouge_mm <= GOUGE_LIMIT_MM);
 }
+
+/// Programs the ILC's settings were not chosen on (held out: other sizes, feeds, gains and
+/// turns within issue 24's ranges), asserted against the same gates.
+#[test]
+fn held_out_corner_programs() {
+    let sq = |s: f64, f: f64| format!("G90 G17 G94\nG1 X{s} F{f}\nG1 Y{s}\nG1 X0\nG1 Y0\n");
+    check_corner_goals(
+        "12 mm square F2000",
+        45.0,
+        &sq(12.0, 2000.0),
+        None,
+        Expect::Gates,
+    );
+    check_corner_goals(
+        "6 mm square F2500",
+        35.0,
+        &sq(6.0, 2500.0),
+        None,
+        Expect::Gates,
+    );
+    let mut stairs = String::from("G90 G17 G94\nG1 X3 F1500\n");
+    for k in 1..=4 {
+        stairs += &format!("G1 Y{}\nG1 X{}\n", 3 * k, 3 * k + 3);
+    }
+    check_corner_goals("3 mm staircase F1500", 50.0, &stairs, None, Expect::Gates);
+    let (x1, y1) = step(20.0, 0.0, 120.0, 12.0);
+    let (x2, y2) = step(x1, y1, 240.0, 12.0);
+    let turns = format!("G90 G17 G94\nG1 X20 F2500\nG1 X{x1} Y{y1}\nG1 X{x2} Y{y2}\n");
+    check_corner_goals("120° turns F2500", 45.0, &turns, None, Expect::Gates);
+    let arc = "G90 G17 G94\nG1 X15 F2000\nG2 X27 Y0 I6 J0\nG1 X40\n";
+    check_corner_goals("line–arc R6–line F2000", 40.0, arc, None, Expect::Gates);
+    let why = "inside corners (G41): as for the 10 mm square, the tool may not pass the corner \
+        outside the turn, so the corner stays cut by the servo's lag at the junction speed";
+    let miss = Expect::Miss {
+        rms: 0.75,
+        max: 0.85,
+        why,
+    };
+    let pocket = sq(8.0, 1500.0);
+    check_corner_goals(
+        "8 mm square G41 F1500",
+        50.0,
+        &pocket,
+        Some(MaterialSide::Right),
+        miss,
+    );
+}
