@@ -123,7 +123,7 @@ const GOUGE_WEIGHT_MM: f64 = 1e4;
 
 impl CornerScore {
     /// The search's objective (mm³) at corner `spot`.
-    fn objective(&self, spot: &CornerSpot) -> f64 {
+    pub(super) fn objective(&self, spot: &CornerSpot) -> f64 {
         let excess = if spot.outside {
             0.0
         } else {
@@ -388,6 +388,10 @@ const DIRS: [[f64; 3]; 6] = [
     [0.0, -1.0, 0.0],
 ];
 
+/// What [`search`] returns: its outcome, the split points, their programmed feeds (mm/min,
+/// as [`Run::evaluate_with`] takes them) and their simulation.
+pub(super) type Searched = (CornerResult, Vec<[f64; 3]>, Vec<f64>, Eval);
+
 /// Pattern search of `(δ_in, δ_out, L)` of every corner (module docs) on the points `base`,
 /// evaluated by `run` (whose per-point data are already split). `orig_periods` is the
 /// original program's length in periods.
@@ -396,7 +400,7 @@ pub(super) fn search(
     base: &[[f64; 3]],
     corners: &[CornerSpot],
     orig_periods: usize,
-) -> Result<(CornerResult, Vec<[f64; 3]>, Eval), Error> {
+) -> Result<Searched, Error> {
     let n = corners.len();
     let mut theta = vec![[0.0f64; 3]; n];
     let eval = |th: &[[f64; 3]]| -> Result<(Vec<[f64; 3]>, Eval), Error> {
@@ -493,6 +497,7 @@ pub(super) fn search(
             simulations,
         },
         pts,
+        split_feeds(&run.reference, &run.base_feed, corners, &theta),
         cur_eval,
     ))
 }
