@@ -313,7 +313,9 @@ fn contour_pass(
         gcode.push_str(eol);
     }
     let cutting = |l: usize| matches!(kinds.get(l), Some(Kind::Feed | Kind::Hole));
-    let (original, compensated) = figures(&program, &gcode, options, machine, period_s, &cutting)?;
+    let (original, compensated) = figures(
+        &program, &gcode, &out_lines, options, machine, period_s, &cutting,
+    )?;
     // The gouge at the corners is the pre-distortion's own figure (it knows the corners; it
     // simulates the kept lines as they are written).
     result.original = ErrorStats {
@@ -341,11 +343,15 @@ fn contour_pass(
 /// Zhang & Chen 2025 §4.2 eq. 11 by [`contour_error`]) of the `original` program and of the
 /// program text `written` (read with `options`), both interpolated and simulated on `machine`
 /// at `period_s` (s); the shorter run is held at rest at its end. Taken over the periods in
-/// which the original runs a line that cuts (`cutting`: feed moves and holes; rapids cut
-/// nothing and are not pre-distorted), over all periods when no line cuts.
+/// which each run runs a line that cuts (`cutting`, of a line of the original text: feed
+/// moves and holes; rapids cut nothing and are not pre-distorted; line `k` of `written` came
+/// from line `written_lines[k - 1]` of that text), over all periods when no line cuts. Each
+/// run is judged by its own lines: the written program may run a little longer, and its
+/// periods then no longer line up with the original's.
 fn figures(
     original: &Program,
     written: &str,
+    written_lines: &[usize],
     options: &ReadOptions,
     machine: &Machine,
     period_s: f64,
@@ -372,14 +378,21 @@ fn figures(
         &actual,
         &orig.commanded.corners,
     );
-    let tags = &orig.commanded.line;
-    let mask: Vec<bool> = (0..n)
-        .map(|i| {
-            tags.get(i.min(tags.len().saturating_sub(1)))
-                .is_some_and(|&l| cutting(l as usize))
-        })
-        .collect();
-    let all = !mask.contains(&true);
+    // A period cuts when its run is on a cutting line then (at rest after its end: not).
+    let cuts = |tags: &[u32], to_text: &dyn Fn(usize) -> Option<usize>| -> Vec<bool> {
+        (0..n)
+            .map(|i| {
+                tags.get(i)
+                    .and_then(|&l| to_text(l as usize))
+                    .is_some_and(cutting)
+            })
+            .collect()
+    };
+    let mask_orig = cuts(&orig.commanded.line, &|l| Some(l));
+    let mask_written = cuts(&cmd.line, &|l| {
+        l.checked_sub(1).and_then(|k| written_lines.get(k).copied())
+    });
+    let all = !mask_orig.contains(&true);
     // Each period weighted by the path length its tool tip covers (half the chord to each
     // neighbour), as the pre-distortion's distance-weighted RMS.
     let weights = |axes: &[Vec<f64>]| -> Vec<f64> {
@@ -400,7 +413,7 @@ fn figures(
             })
             .collect()
     };
-    let stats = |ce: &[f64], axes: &[Vec<f64>], periods: usize| {
+    let stats = |ce: &[f64], axes: &[Vec<f64>], periods: usize, mask: &[bool]| {
         let w = weights(axes);
         let (mut sq, mut max, mut k) = (0.0, 0.0f64, 0usize);
         let (mut wsq, mut wsum) = (0.0, 0.0);
@@ -428,7 +441,8 @@ fn figures(
             &orig.report.contour_error,
             &orig.actual,
             orig.commanded.t.len(),
+            &mask_orig,
         ),
-        stats(&report.contour_error, &actual, cmd.t.len()),
+        stats(&report.contour_error, &actual, cmd.t.len(), &mask_written),
     ))
 }

@@ -65,7 +65,7 @@ const REACH_MM: f64 = 3.0;
 
 /// Most ILC steps (each: the Jacobian when the step before was kept, then one to three
 /// simulations of the step).
-const MAX_STEPS: usize = 14;
+pub(super) const MAX_STEPS: usize = 14;
 
 /// Levenberg–Marquardt damping of the first step (relative to the diagonal of `JᵀJ`).
 const LAMBDA0: f64 = 1e-2;
@@ -83,10 +83,19 @@ struct Window {
     basis: [[f64; 3]; 2],
 }
 
+/// Most interpolation periods the stage simulates in all (its work bound): 6,000,000, room
+/// for all [`MAX_STEPS`] on a program of some 5 s (every corner program of the tests, whose
+/// figures it leaves as they are); on longer programs the stage takes as many steps as fit
+/// (each step's Jacobian simulates the whole program some 100 times) and says so.
+pub const WORK_PERIODS: usize = 6_000_000;
+
 /// How the stage went.
 pub(super) struct IlcOutcome {
     /// Simulations run.
     pub simulations: usize,
+    /// Steps taken before the work bound [`WORK_PERIODS`] stopped the stage (`None`: it was
+    /// not reached).
+    pub bounded_after: Option<usize>,
 }
 
 /// The moving points of each corner (`Q`, `P_in`, `P_out` and up to [`SIDE_POINTS`] within
@@ -252,7 +261,10 @@ pub(super) fn refine(
     fixed: &dyn Fn(usize) -> bool,
 ) -> Result<(Vec<[f64; 3]>, Eval, IlcOutcome), Error> {
     let n = corners.len();
-    let mut outcome = IlcOutcome { simulations: 0 };
+    let mut outcome = IlcOutcome {
+        simulations: 0,
+        bounded_after: None,
+    };
     if n == 0 {
         return Ok((pts, cur, outcome));
     }
@@ -277,7 +289,16 @@ pub(super) fn refine(
     let mm = MAX_MOVE_MM;
     let mut jac: Vec<Option<DMatrix<f64>>> = vec![None; n];
     let mut stale = true;
-    for _step in 0..MAX_STEPS {
+    // Periods one simulation costs (the run is padded to at least the original's length).
+    let per_sim = cur.actual.first().map_or(1, Vec::len).max(1);
+    let jacobian_sims = 2 * win.iter().map(|w| 2 * w.points.len()).max().unwrap_or(0);
+    for step in 0..MAX_STEPS {
+        // A step: the Jacobian when it is stale, then up to three simulations of the step.
+        let next = if stale { jacobian_sims + 3 } else { 3 };
+        if (outcome.simulations + next) * per_sim > WORK_PERIODS {
+            outcome.bounded_after = Some(step);
+            break;
+        }
         if stale {
             for (c, w) in win.iter().enumerate() {
                 jac[c] = Some(DMatrix::zeros(res[c].len(), 2 * w.points.len()));

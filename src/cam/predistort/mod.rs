@@ -392,6 +392,7 @@ pub fn predistort_sided(
     let refusal = refusal_notes(machine, &lines, &refused);
     let mut lines = lines;
     let mut corner_result = None;
+    let mut ilc_bound = None;
     if !spots.is_empty() {
         let next = |v: &[f64], k: usize| v[(k + 1).min(v.len() - 1)];
         run.base_feed = corners::split_values(&run.base_feed, &spots, |k| {
@@ -407,6 +408,7 @@ pub fn predistort_sided(
         let (pts, e, ilc_out) =
             ilc::refine(&run, pts, &feeds, e, &spots, &res.before, &fixed_point)?;
         iterations += ilc_out.simulations;
+        ilc_bound = ilc_out.bounded_after;
         res.after = corners::score(&run.reference, &spots, &e);
         cur = pts;
         cur_eval = e;
@@ -459,6 +461,18 @@ pub fn predistort_sided(
     notes.extend(refusal.into_iter().filter(not_corner));
     if let Some(res) = &corner_result {
         notes.extend(corner_notes(&spots, res));
+    }
+    if let Some(steps) = ilc_bound {
+        notes.push(format!(
+            "the corner-window refinement of the {} corners stopped after {steps} of its {} \
+             steps at its work bound ({} simulated interpolation periods; each step simulates \
+             the whole {:.1} s program once per moving point and direction): compensating a \
+             shorter section of the program around its corners lets it run every step",
+            spots.len(),
+            ilc::MAX_STEPS,
+            ilc::WORK_PERIODS,
+            run.orig_periods as f64 * opts.period_s,
+        ));
     }
     notes.extend(
         residual_notes(

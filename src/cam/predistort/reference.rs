@@ -28,7 +28,17 @@ pub(super) struct Reference {
     pub steady: Vec<bool>,
     /// Speed of the original command leaving the knot (a corner: arriving at it), mm/s.
     pub speed_mm_s: Vec<f64>,
+    /// Bounding sphere (centre, radius, mm) of each run of [`BOUND_SEGMENTS`] segments
+    /// (segments `b·BOUND_SEGMENTS ..`), built by [`Reference::new`]: lets [`Reference::feet`]
+    /// pass over runs that cannot hold a nearer foot.
+    bounds: Vec<([f64; 3], f64)>,
+    /// The same for runs of [`BOUND_SEGMENTS`]² segments.
+    bounds_wide: Vec<([f64; 3], f64)>,
 }
+
+/// Segments per bounding sphere of [`Reference::feet`]'s search (and the factor between its
+/// two levels).
+const BOUND_SEGMENTS: usize = 16;
 
 /// Feed (mm/min) of `block` as the interpolator plans it along the path.
 fn feed_of(machine: &Machine, feed: Feed, len_mm: f64) -> f64 {
@@ -87,6 +97,8 @@ impl Reference {
             corner: Vec::with_capacity(n),
             steady: Vec::with_capacity(n),
             speed_mm_s: Vec::with_capacity(n),
+            bounds: Vec::new(),
+            bounds_wide: Vec::new(),
         };
         let mut corners = cmd.corners.iter().peekable();
         for i in 0..n {
@@ -107,6 +119,8 @@ impl Reference {
             r.speed_mm_s.push(speed[i]);
             r.speed_mm_s.truncate(r.knots.len());
         }
+        r.bounds = sphere_bounds(&r.knots, BOUND_SEGMENTS);
+        r.bounds_wide = sphere_bounds(&r.knots, BOUND_SEGMENTS * BOUND_SEGMENTS);
         r
     }
 
@@ -186,21 +200,66 @@ impl Reference {
             return out;
         }
         let mut prev = 0usize;
+        let b = BOUND_SEGMENTS;
+        // A run of segments is passed over when its bounding sphere lies farther from the tip
+        // than the best distance found (with a margin for rounding): none of its segments
+        // could then be strictly nearer, so the foot is the one the plain scan finds.
+        let beyond = |a: &[f64; 3], run: usize, best: f64, wide: bool| {
+            let (c, r) = if wide {
+                self.bounds_wide[run]
+            } else {
+                self.bounds[run]
+            };
+            let lower = dist(c, *a) - r;
+            lower > best + 1e-12 * (lower.abs() + r + 1.0)
+        };
         for a in actual {
             let (d0, f0) = chord_distance(&self.knots[prev], &self.knots[prev + 1], a);
             let s0 = self.cum[prev] + f0 * (self.cum[prev + 1] - self.cum[prev]);
             let reach = 8.0 * d0 + 1e-9;
             let mut best = (d0, prev, f0);
+            // Backwards: segment j - 1 is looked at while cum[j] >= s0 - reach.
             let mut j = prev;
             while j > 0 && self.cum[j] >= s0 - reach {
+                let mut passed = false;
+                for (len, wide) in [(b * b, true), (b, false)] {
+                    if j % len == 0
+                        && j >= len
+                        && self.cum[j - len + 1] >= s0 - reach
+                        && beyond(a, j / len - 1, best.0, wide)
+                    {
+                        j -= len;
+                        passed = true;
+                        break;
+                    }
+                }
+                if passed {
+                    continue;
+                }
                 j -= 1;
                 let (d, f) = chord_distance(&self.knots[j], &self.knots[j + 1], a);
                 if d < best.0 {
                     best = (d, j, f);
                 }
             }
+            // Forwards: segment j is looked at while cum[j] <= s0 + reach.
             let mut j = prev + 1;
             while j < nseg && self.cum[j] <= s0 + reach {
+                let mut passed = false;
+                for (len, wide) in [(b * b, true), (b, false)] {
+                    if j % len == 0
+                        && j + len <= nseg
+                        && self.cum[j + len - 1] <= s0 + reach
+                        && beyond(a, j / len, best.0, wide)
+                    {
+                        j += len;
+                        passed = true;
+                        break;
+                    }
+                }
+                if passed {
+                    continue;
+                }
                 let (d, f) = chord_distance(&self.knots[j], &self.knots[j + 1], a);
                 if d < best.0 {
                     best = (d, j, f);
@@ -220,6 +279,30 @@ impl Reference {
         }
         out
     }
+}
+
+/// Bounding spheres (centre = middle of the bounding box, radius to its farthest knot, mm,
+/// rounded up) of the runs of `len` segments of the polyline `knots`.
+fn sphere_bounds(knots: &[[f64; 3]], len: usize) -> Vec<([f64; 3], f64)> {
+    let nseg = knots.len().saturating_sub(1);
+    (0..nseg.div_ceil(len))
+        .map(|run| {
+            let from = run * len;
+            let to = (from + len).min(nseg);
+            let pts = &knots[from..=to];
+            let mut lo = pts[0];
+            let mut hi = pts[0];
+            for p in pts {
+                for d in 0..3 {
+                    lo[d] = lo[d].min(p[d]);
+                    hi[d] = hi[d].max(p[d]);
+                }
+            }
+            let c = std::array::from_fn(|d| 0.5 * (lo[d] + hi[d]));
+            let r = pts.iter().map(|p| dist(c, *p)).fold(0.0, f64::max);
+            (c, r * (1.0 + 1e-12) + 1e-12)
+        })
+        .collect()
 }
 
 /// Distance from `a` to the chord `p0→p1` and the fraction along it.

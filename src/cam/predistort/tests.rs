@@ -263,3 +263,72 @@ fn feet_agree_with_contour_error() {
         assert!(worst < 0.5e-3, "{worst}");
     }
 }
+
+/// The plain scan [`Reference::feet`] makes without its bounding spheres (the search of its
+/// docs, every segment of the window looked at).
+fn feet_plain(r: &Reference, actual: &[[f64; 3]]) -> Vec<(f64, [f64; 3])> {
+    let nseg = r.knots.len() - 1;
+    let mut prev = 0usize;
+    let mut out = Vec::new();
+    for a in actual {
+        let (d0, f0) = reference::chord_distance(&r.knots[prev], &r.knots[prev + 1], a);
+        let s0 = r.cum[prev] + f0 * (r.cum[prev + 1] - r.cum[prev]);
+        let reach = 8.0 * d0 + 1e-9;
+        let mut best = (d0, prev, f0);
+        let mut j = prev;
+        while j > 0 && r.cum[j] >= s0 - reach {
+            j -= 1;
+            let (d, f) = reference::chord_distance(&r.knots[j], &r.knots[j + 1], a);
+            if d < best.0 {
+                best = (d, j, f);
+            }
+        }
+        let mut j = prev + 1;
+        while j < nseg && r.cum[j] <= s0 + reach {
+            let (d, f) = reference::chord_distance(&r.knots[j], &r.knots[j + 1], a);
+            if d < best.0 {
+                best = (d, j, f);
+            }
+            j += 1;
+        }
+        let (_, j, f) = best;
+        prev = j;
+        let (p0, p1) = (r.knots[j], r.knots[j + 1]);
+        let foot: [f64; 3] = std::array::from_fn(|d| p0[d] + f * (p1[d] - p0[d]));
+        let s = r.cum[j] + f * (r.cum[j + 1] - r.cum[j]);
+        out.push((s, std::array::from_fn(|d| a[d] - foot[d])));
+    }
+    out
+}
+
+/// The bounding spheres only speed the foot search up: on a program with rapids, a peck
+/// cycle that retraces its own path, sharp corners and arcs (the simulated tips, and the
+/// tips pushed up to 3 mm off the path), the feet are those of the plain scan, bit for bit.
+#[test]
+fn pruned_foot_search_finds_the_plain_scans_feet() {
+    let m = machine();
+    let text = "G90 G17 G94\nG0 X5 Y5 Z5\nG1 Z-1 F600\nG1 X25 F2000\nG3 X35 Y15 R10\nG1 Y30\n\
+                G1 X5 Y31\nG0 Z5\nG99 G83 X20 Y20 Z-12 R2 Q3 F200\nX30\nG80\nG0 X0 Y0 Z10\n";
+    let (prog, _) = gcode::parse_with(text, &crate::motion::ReadOptions::default()).unwrap();
+    let orig = predict_program(&m, &prog, 1e-3, MAX_PERIODS).unwrap();
+    let r = Reference::new(&m, &prog, &orig.commanded);
+    let mut tips: Vec<[f64; 3]> = (0..orig.actual[0].len())
+        .map(|i| [orig.actual[0][i], orig.actual[1][i], orig.actual[2][i]])
+        .collect();
+    let plain = feet_plain(&r, &tips);
+    assert_eq!(r.feet(&tips), plain);
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let mut next = || {
+        state ^= state << 13;
+        state ^= state >> 7;
+        state ^= state << 17;
+        (state >> 11) as f64 / (1u64 << 53) as f64 - 0.5
+    };
+    for t in tips.iter_mut() {
+        let scale = if next() > 0.3 { 6.0 } else { 0.05 };
+        *t = std::array::from_fn(|d| t[d] + scale * next());
+    }
+    let plain = feet_plain(&r, &tips);
+    println!("{} tips, {} knots", tips.len(), r.knots.len());
+    assert_eq!(r.feet(&tips), plain);
+}
