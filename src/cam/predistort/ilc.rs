@@ -33,7 +33,9 @@
 //! reach into its neighbours' windows) and kept when every corner still passes those checks
 //! and the objectives' sum falls (or each corner's own does); corners that fail are dropped
 //! and the rest tried again, twice at most. A kept corner's `λ_c` falls threefold, the others'
-//! rise fourfold. Moving `Q` moves the stretch of the block `Q → P_in`, whose feed therefore
+//! rise fourfold. The stage stops after [`MAX_STEPS`] steps or when the next would pass its
+//! work bound [`WORK_PERIODS`] of simulated periods (the simulations cost the whole program's
+//! length each; the caller notes the bound). Moving `Q` moves the stretch of the block `Q → P_in`, whose feed therefore
 //! follows it (the original's top speed over that stretch, as the corner stage sets it), so
 //! that no block runs slower than the original did along its stretch.
 //!

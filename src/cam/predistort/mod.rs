@@ -39,7 +39,8 @@
 //! budget, are taken back. Then the corner-window ILC (module `ilc`) moves every point near
 //! each such corner (the braking and accelerating stretches with the three split points) by
 //! Levenberg–Marquardt steps on the simulation's Jacobian (norm-optimal ILC on the lifted
-//! system), under the same gouge rule and a 14 % time budget for both stages together.
+//! system), under the same gouge rule and a 14 % time budget for both stages together, within
+//! a work bound of simulated periods (a note says when it stops there).
 //! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
 //!
 //! Bad cases: machines with rotary axes (`xyzac_table`) and programs with dwells (G4) are
@@ -462,13 +463,15 @@ pub fn predistort_sided(
     if let Some(res) = &corner_result {
         notes.extend(corner_notes(&spots, res));
     }
-    if let Some(steps) = ilc_bound {
+    if let (Some(steps), Some(first)) = (ilc_bound, spots.first()) {
         notes.push(format!(
-            "the corner-window refinement of the {} corners stopped after {steps} of its {} \
-             steps at its work bound ({} simulated interpolation periods; each step simulates \
-             the whole {:.1} s program once per moving point and direction): compensating a \
-             shorter section of the program around its corners lets it run every step",
-            spots.len(),
+            "line {}: the corner-window refinement of this corner and the program's {} others \
+             stopped after {steps} of its {} steps at its work bound ({} simulated \
+             interpolation periods; each step simulates the whole {:.1} s program once per \
+             moving point and direction): compensating a shorter section of the program \
+             around its corners lets it run every step",
+            first.line,
+            spots.len() - 1,
             ilc::MAX_STEPS,
             ilc::WORK_PERIODS,
             run.orig_periods as f64 * opts.period_s,
