@@ -36,6 +36,14 @@ pub(super) struct Reference {
     bounds_wide: Vec<([f64; 3], f64)>,
 }
 
+/// Distances (mm) within which two segments count as equally near a tip for
+/// [`Reference::feet_hinted`].
+const TIE_MM: f64 = 1e-9;
+
+/// Farthest (mm of arc) the forward scan of [`Reference::feet_hinted`] reaches beyond its
+/// window towards the hint.
+const HINT_REACH_MM: f64 = 20.0;
+
 /// Segments per bounding sphere of [`Reference::feet`]'s search (and the factor between its
 /// two levels).
 const BOUND_SEGMENTS: usize = 16;
@@ -190,6 +198,15 @@ impl Reference {
     /// space, and within `8d` along a path with inner angles above 29° (the window of
     /// [`crate::motion::contour_error`]).
     pub fn feet(&self, actual: &[[f64; 3]]) -> Vec<(f64, [f64; 3])> {
+        self.feet_hinted(actual, None)
+    }
+
+    /// [`Reference::feet`] with, per tip, the arc parameter `hint` (mm) the command is heading
+    /// for: between segments equally near (within [`TIE_MM`]) the foot takes the one nearer
+    /// the hint in arc. Where the path retraces itself (up to a clearance plane and back down
+    /// the same line to the plunge) both passes are equally near, and without the hint the
+    /// foot would slide back down the pass the tool has left.
+    pub fn feet_hinted(&self, actual: &[[f64; 3]], hint: Option<&[f64]>) -> Vec<(f64, [f64; 3])> {
         let nseg = self.knots.len().saturating_sub(1);
         let mut out = Vec::with_capacity(actual.len());
         if nseg == 0 {
@@ -211,9 +228,20 @@ impl Reference {
                 self.bounds[run]
             };
             let lower = dist(c, *a) - r;
-            lower > best + 1e-12 * (lower.abs() + r + 1.0)
+            lower > best + TIE_MM + 1e-12 * (lower.abs() + r + 1.0)
         };
-        for a in actual {
+        let arc = |j: usize, f: f64| self.cum[j] + f * (self.cum[j + 1] - self.cum[j]);
+        for (i, a) in actual.iter().enumerate() {
+            let h = hint.and_then(|h| h.get(i).copied());
+            // Nearer, or (with a hint) as near and nearer the hint along the path.
+            let better = |d: f64, j: usize, f: f64, best: &(f64, usize, f64)| match h {
+                None => d < best.0,
+                Some(h) => {
+                    d < best.0 - TIE_MM
+                        || (d < best.0 + TIE_MM
+                            && (arc(j, f) - h).abs() < (arc(best.1, best.2) - h).abs())
+                }
+            };
             let (d0, f0) = chord_distance(&self.knots[prev], &self.knots[prev + 1], a);
             let s0 = self.cum[prev] + f0 * (self.cum[prev + 1] - self.cum[prev]);
             let reach = 8.0 * d0 + 1e-9;
@@ -238,18 +266,24 @@ impl Reference {
                 }
                 j -= 1;
                 let (d, f) = chord_distance(&self.knots[j], &self.knots[j + 1], a);
-                if d < best.0 {
+                if better(d, j, f, &best) {
                     best = (d, j, f);
                 }
             }
             // Forwards: segment j is looked at while cum[j] <= s0 + reach.
             let mut j = prev + 1;
-            while j < nseg && self.cum[j] <= s0 + reach {
+            // With a hint ahead, the forward scan reaches on towards it (up to
+            // HINT_REACH_MM), where a retraced pass as near as the one behind may lie.
+            let ahead = match h {
+                Some(h) if h > s0 + reach => reach.max((h - s0).min(reach + HINT_REACH_MM)),
+                _ => reach,
+            };
+            while j < nseg && self.cum[j] <= s0 + ahead {
                 let mut passed = false;
                 for (len, wide) in [(b * b, true), (b, false)] {
                     if j % len == 0
                         && j + len <= nseg
-                        && self.cum[j + len - 1] <= s0 + reach
+                        && self.cum[j + len - 1] <= s0 + ahead
                         && beyond(a, j / len, best.0, wide)
                     {
                         j += len;
@@ -261,7 +295,7 @@ impl Reference {
                     continue;
                 }
                 let (d, f) = chord_distance(&self.knots[j], &self.knots[j + 1], a);
-                if d < best.0 {
+                if better(d, j, f, &best) {
                     best = (d, j, f);
                 }
                 j += 1;

@@ -183,7 +183,18 @@ impl Run<'_> {
         let tips: Vec<[f64; 3]> = (0..actual[0].len())
             .map(|i| [actual[0][i], actual[1][i], actual[2][i]])
             .collect();
-        let feet = self.reference.feet(&tips);
+        // The arc parameter of the point each period's command heads for (held at the last
+        // after the command ends): the foot search's hint where the path retraces itself.
+        let last_sigma = self.sigma.last().copied().unwrap_or(0.0);
+        let hint: Vec<f64> = (0..tips.len())
+            .map(|i| {
+                line.get(i)
+                    .and_then(|&t| (t as usize).checked_sub(1))
+                    .and_then(|k| self.sigma.get(k).copied())
+                    .unwrap_or(last_sigma)
+            })
+            .collect();
+        let feet = self.reference.feet_hinted(&tips, Some(&hint));
         let sq: Vec<f64> = feet
             .iter()
             .map(|(_, e)| e.iter().map(|v| v * v).sum::<f64>())

@@ -332,3 +332,54 @@ fn pruned_foot_search_finds_the_plain_scans_feet() {
     println!("{} tips, {} knots", tips.len(), r.knots.len());
     assert_eq!(r.feet(&tips), plain);
 }
+
+/// A retraced path (up to a clearance plane, back down the same line, plunge, then across):
+/// without a hint the foot slides back down the pass the tool has left and stays there, so the
+/// tool moving off across reads millimetres from the path; with the command's arc position as
+/// the hint the foot keeps to the pass ahead and the tool stays within its real contour error.
+#[test]
+fn hinted_feet_keep_to_the_pass_ahead_where_the_path_retraces_itself() {
+    let m = machine();
+    let text = "G90 G17 G94\nG0 X20 Y10\nG0 Z30\nG0 Z5\nG1 Z-2 F600\nG1 X60 Y20 F1500\n";
+    let (prog, _) = gcode::parse_with(text, &crate::motion::ReadOptions::default()).unwrap();
+    let orig = predict_program(&m, &prog, 1e-3, MAX_PERIODS).unwrap();
+    let r = Reference::new(&m, &prog, &orig.commanded);
+    let tips: Vec<[f64; 3]> = (0..orig.actual[0].len())
+        .map(|i| [orig.actual[0][i], orig.actual[1][i], orig.actual[2][i]])
+        .collect();
+    let cmd: Vec<[f64; 3]> = (0..orig.commanded.axes[0].len())
+        .map(|i| {
+            let a = &orig.commanded.axes;
+            [a[0][i], a[1][i], a[2][i]]
+        })
+        .collect();
+    // The command's own arc position: the length of its path so far (its samples are the
+    // knots of the reference).
+    let mut run = 0.0;
+    let hint: Vec<f64> = (0..cmd.len())
+        .map(|i| {
+            if i > 0 {
+                run += run::norm(run::sub(cmd[i], cmd[i - 1]));
+            }
+            run
+        })
+        .collect();
+    let worst = |feet: &[(f64, [f64; 3])]| {
+        feet.iter()
+            .map(|(_, e)| (e[0] * e[0] + e[1] * e[1] + e[2] * e[2]).sqrt())
+            .fold(0.0, f64::max)
+    };
+    let plain = worst(&r.feet(&tips));
+    let hinted = worst(&r.feet_hinted(&tips, Some(&hint)));
+    println!(
+        "largest foot distance: {:.1} µm plain, {:.1} µm hinted; motion core's contour error {:.1} µm",
+        plain * 1e3,
+        hinted * 1e3,
+        orig.report.max * 1e3
+    );
+    assert!(
+        plain > 1.0,
+        "the plain search no longer slides back: {plain} mm"
+    );
+    assert!(hinted <= orig.report.max + 1e-3, "{hinted} mm");
+}
