@@ -10,7 +10,7 @@
 
 use crate::motion::gcode::Feed;
 use crate::motion::{Machine, Program, Trajectory};
-use crate::numeric::vec3::{dist, dot};
+use crate::numeric::vec3::{dist, dot, sub};
 
 /// Reference polyline of the original path (workpiece frame = machine frame on `xyz`).
 pub(super) struct Reference {
@@ -272,10 +272,18 @@ impl Reference {
             }
             // Forwards: segment j is looked at while cum[j] <= s0 + reach.
             let mut j = prev + 1;
-            // With a hint ahead, the forward scan reaches on towards it (up to
-            // HINT_REACH_MM), where a retraced pass as near as the one behind may lie.
+            // With a hint ahead and the tool moving back along the segment of its last foot
+            // (as where it turns back on a retraced path), the forward scan reaches on
+            // towards the hint (up to HINT_REACH_MM), where the pass ahead, as near as the
+            // one behind, lies.
+            let moving_back = i > 0 && {
+                let t = sub(self.knots[prev + 1], self.knots[prev]);
+                dot(sub(*a, actual[i - 1]), t) < 0.0
+            };
             let ahead = match h {
-                Some(h) if h > s0 + reach => reach.max((h - s0).min(reach + HINT_REACH_MM)),
+                Some(h) if moving_back && h > s0 + reach => {
+                    reach.max((h - s0).min(reach + HINT_REACH_MM))
+                }
                 _ => reach,
             };
             while j < nseg && self.cum[j] <= s0 + ahead {
