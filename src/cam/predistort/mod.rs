@@ -449,6 +449,17 @@ pub fn predistort_sided(
         &orig.actual,
         run.orig_periods,
     );
+    // The source line of each period of the compensated run (its own line tags: point k's
+    // block carries tag k + 1).
+    let comp_lines: Vec<usize> = cur_eval
+        .line
+        .iter()
+        .filter_map(|&t| {
+            (t as usize)
+                .checked_sub(1)
+                .and_then(|k| lines.get(k).copied())
+        })
+        .collect();
     let mut notes = Vec::new();
     if !converged && opts.max_iterations > 0 {
         notes.push(format!(
@@ -482,7 +493,9 @@ pub fn predistort_sided(
             &orig.report.contour_error,
             &orig.commanded.line,
             &report.contour_error,
+            &comp_lines,
             &run.reference,
+            &|l| run.kept.contains_key(&l),
         )
         .into_iter()
         .filter(not_corner),

@@ -81,11 +81,17 @@ pub(super) fn refusal_notes(
 
 /// One sentence per source line whose largest contour error the pre-distortion did not bring
 /// below 0.3× the original's there (lines with an original error above 1 µm), at most 20.
+/// `orig_line` is the source line of each period of the original, `comp_line` that of each
+/// period of the compensated run (each run is judged on its own lines: the compensated one may
+/// run a little longer); lines written as programmed (`kept`: rapids, cycles) are not
+/// pre-distorted and get no sentence.
 pub(super) fn residual_notes(
     orig_ce: &[f64],
     orig_line: &[u32],
     comp_ce: &[f64],
+    comp_line: &[usize],
     reference: &Reference,
+    kept: &dyn Fn(usize) -> bool,
 ) -> Vec<String> {
     use std::collections::BTreeMap;
     let mut per: BTreeMap<usize, (f64, f64)> = BTreeMap::new();
@@ -93,9 +99,12 @@ pub(super) fn residual_notes(
         let v = per.entry(orig_line[i] as usize).or_default();
         v.0 = v.0.max(*e);
     }
-    let last = orig_line.len().saturating_sub(1);
+    let last = comp_line.len().saturating_sub(1);
     for (i, e) in comp_ce.iter().enumerate() {
-        let v = per.entry(orig_line[i.min(last)] as usize).or_default();
+        let Some(&line) = comp_line.get(i.min(last)) else {
+            break;
+        };
+        let v = per.entry(line).or_default();
         v.1 = v.1.max(*e);
     }
     let last_line = reference.line.last().copied().unwrap_or(0);
@@ -105,7 +114,7 @@ pub(super) fn residual_notes(
         .collect();
     let bad: Vec<_> = per
         .iter()
-        .filter(|(_, (o, c))| *o > 1e-3 && *c > 0.3 * o)
+        .filter(|(line, (o, c))| *o > 1e-3 && *c > 0.3 * o && !kept(**line))
         .collect();
     let mut out: Vec<String> = bad
         .iter()
