@@ -82,14 +82,44 @@ fn dir_bytes(dir: &Path) -> u64 {
         .unwrap_or(0)
 }
 
-/// What the database takes for the jobs: the data dir on SQLite; on PostgreSQL the jobs
+/// Bytes of the files directly under `dir` whose name ends with `suffix`.
+fn dir_bytes_named(dir: &Path, suffix: &str) -> u64 {
+    std::fs::read_dir(dir)
+        .map(|entries| {
+            entries
+                .flatten()
+                .filter(|e| e.file_name().to_string_lossy().ends_with(suffix))
+                .filter_map(|e| e.metadata().ok())
+                .map(|m| m.len())
+                .sum()
+        })
+        .unwrap_or(0)
+}
+
+/// What the database takes for the jobs: the data dir on SQLite (after a checkpoint); on PostgreSQL the jobs
 /// table with its TOAST and indexes (`pg_total_relation_size`) plus the data dir.
 async fn storage_bytes(app: &TestApp) -> u64 {
-    let files = dir_bytes(app.data_dir.path());
+    use sqlx::{Connection, Row};
     let Some(url) = app.config.database_url.as_deref() else {
+        // SQLite: the WAL is checkpointed into the database first (all jobs have ended), so
+        // that what is measured is the data, not how far the last checkpoint lagged behind
+        // the writes (under load the WAL file grows and keeps its size until truncated).
+        let wal = dir_bytes_named(app.data_dir.path(), "-wal");
+        let db = app.data_dir.path().join("truecut.db");
+        let mut conn =
+            sqlx::sqlite::SqliteConnection::connect(&format!("sqlite://{}", db.display()))
+                .await
+                .unwrap();
+        sqlx::raw_sql("PRAGMA busy_timeout = 10000; PRAGMA wal_checkpoint(TRUNCATE);")
+            .execute(&mut conn)
+            .await
+            .unwrap();
+        conn.close().await.unwrap();
+        let files = dir_bytes(app.data_dir.path());
+        println!("storage: WAL {wal} bytes before the checkpoint, {files} bytes of files after");
         return files;
     };
-    use sqlx::{Connection, Row};
+    let files = dir_bytes(app.data_dir.path());
     let mut conn = sqlx::postgres::PgConnection::connect(url).await.unwrap();
     let row = sqlx::query("SELECT pg_total_relation_size('jobs')")
         .fetch_one(&mut conn)
