@@ -224,11 +224,14 @@ fn contour_pass(
         }
         e => e,
     })?;
-    let mut points: BTreeMap<usize, (Vec<[f64; 3]>, Vec<f64>)> = BTreeMap::new();
+    // Per source line: its points (mm), their feeds (mm/min) and stops (s).
+    type LinePoints = (Vec<[f64; 3]>, Vec<f64>, Vec<f64>);
+    let mut points: BTreeMap<usize, LinePoints> = BTreeMap::new();
     for p in &result.points {
         let e = points.entry(p.line).or_default();
         e.0.push([p.axes[0], p.axes[1], p.axes.get(2).copied().unwrap_or(0.0)]);
         e.1.push(p.feed_mm_min);
+        e.2.push(p.dwell_s);
     }
     let mut em = Emitter::new();
     let (mut absorbed, mut rapids, mut holes) = (Vec::new(), Vec::new(), Vec::new());
@@ -248,11 +251,12 @@ fn contour_pass(
                 LinePlan::Keep
             }
             (Kind::Feed, Some(f)) => match pts {
-                Some((points_mm, feeds_mm)) => {
+                Some((points_mm, feeds_mm, dwells_s)) => {
                     let unit = if f.inch { 25.4 } else { 1.0 };
                     LinePlan::Points {
                         points_mm,
                         feeds: Some(feeds_mm.iter().map(|v| v / unit).collect()),
+                        dwells_s,
                     }
                 }
                 None => {

@@ -44,6 +44,10 @@ pub enum LinePlan {
         /// F word (program units) of each point, when it must be written on every one
         /// (G93 inverse time, contour pre-distortion); `None` keeps the source's F.
         feeds: Option<Vec<f64>>,
+        /// Stop at each point, s (`G4 P<ms>` on its own line after the point's, Fanuc's
+        /// milliseconds; 0 or missing: none): the contour pre-distortion's exact stops at
+        /// inside corners.
+        dwells_s: Vec<f64>,
     },
     /// A canned-cycle hole (G90): X Y of the hole, the R plane and the bottom (machine frame,
     /// mm); `at_r_after` when the tool stays at R after the hole (G99).
@@ -271,7 +275,11 @@ impl Emitter {
                 let text = rewrite(raw, &info.spans, drop, &words, motion.as_deref());
                 self.push(line, text);
             }
-            LinePlan::Points { points_mm, feeds } => {
+            LinePlan::Points {
+                points_mm,
+                feeds,
+                dwells_s,
+            } => {
                 let g1 = motion_style(raw, &info.spans, 1);
                 let fw = |i: usize| {
                     feeds
@@ -291,13 +299,21 @@ impl Emitter {
                 self.push(line, text);
                 self.out_modal = Some(10);
                 let sep = if spaced(raw, &info.spans) { " " } else { "" };
+                // G4 is one-shot: the bare points after it stay G1.
+                let stop = |em: &mut Self, i: usize| {
+                    let ms = dwells_s.get(i).map_or(0.0, |s| (s * 1e3).round());
+                    if ms > 0.0 {
+                        em.push(line, format!("G4{sep}P{ms}"));
+                    }
+                };
+                stop(self, 0);
                 for (i, &p) in points_mm.iter().enumerate().skip(1) {
                     let mut words = self.axis_words(p, [false; 3], frame);
-                    if words.is_empty() {
-                        continue;
+                    if !words.is_empty() {
+                        words.extend(fw(i));
+                        self.push(line, words.join(sep));
                     }
-                    words.extend(fw(i));
-                    self.push(line, words.join(sep));
+                    stop(self, i);
                 }
             }
             LinePlan::Hole {

@@ -278,6 +278,7 @@ fn plan_line(
                 LinePlan::Points {
                     points_mm: pts,
                     feeds,
+                    dwells_s: Vec::new(),
                 }
             }
         }
@@ -297,6 +298,7 @@ fn plan_line(
                 LinePlan::Points {
                     points_mm: pts,
                     feeds,
+                    dwells_s: Vec::new(),
                 }
             }
         },

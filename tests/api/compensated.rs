@@ -568,15 +568,89 @@ async fn contour_precompensation(app: TestApp) {
 }
 on_both_backends!(contour_precompensation);
 
+/// What the returned program does on machine `def` against the *original* path, both read,
+/// interpolated and simulated here (padded at rest to the same length): distance-weighted RMS
+/// (each period's distance to the original path weighted by the path length the tool tip
+/// covers around it) and max of the original and of the answer (mm), the answer's duration as
+/// a ratio of the original's, and the answer's simulated tool tips (mm).
+struct Resimulated {
+    rms0: f64,
+    max0: f64,
+    rms1: f64,
+    max1: f64,
+    duration: f64,
+    tips1: Vec<[f64; 3]>,
+}
+
+fn resimulate(def: &Value, original: &str, answer: &str) -> Resimulated {
+    use truecut::motion::{
+        DEFAULT_PERIOD_S, Machine, contour_error, interpolate, simulate_machine,
+    };
+    let m = Machine::from_json(def).unwrap();
+    let read = |t: &str| parse_with(t, &ReadOptions::default()).unwrap().0;
+    let cmd0 = interpolate(&read(original), &m, DEFAULT_PERIOD_S, 2_000_000).unwrap();
+    let cmd1 = interpolate(&read(answer), &m, DEFAULT_PERIOD_S, 2_000_000).unwrap();
+    let n = cmd0.t.len().max(cmd1.t.len());
+    let pad = |cols: &[Vec<f64>]| -> Vec<Vec<f64>> {
+        cols.iter()
+            .map(|c| {
+                let mut c = c.clone();
+                let last = *c.last().unwrap();
+                c.resize(n, last);
+                c
+            })
+            .collect()
+    };
+    let mut padded0 = cmd0.clone();
+    padded0.axes = pad(&cmd0.axes);
+    padded0.t = (0..n).map(|i| i as f64 * DEFAULT_PERIOD_S).collect();
+    let mut padded1 = cmd1.clone();
+    padded1.axes = pad(&cmd1.axes);
+    padded1.t = padded0.t.clone();
+    let act0 = simulate_machine(&m, &padded0).unwrap();
+    let act1 = simulate_machine(&m, &padded1).unwrap();
+    let tips = |act: &[Vec<f64>]| -> Vec<[f64; 3]> {
+        (0..n).map(|i| [act[0][i], act[1][i], act[2][i]]).collect()
+    };
+    let figures = |act: &[Vec<f64>]| {
+        let ce = contour_error(&m.kinematics, &padded0.axes, act, &cmd0.corners).contour_error;
+        let tip = tips(act);
+        let d = |a: [f64; 3], b: [f64; 3]| {
+            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
+        };
+        let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
+        for (i, e) in ce.iter().enumerate() {
+            let back = if i > 0 { d(tip[i], tip[i - 1]) } else { 0.0 };
+            let fwd = if i + 1 < n {
+                d(tip[i + 1], tip[i])
+            } else {
+                0.0
+            };
+            let w = 0.5 * (back + fwd);
+            num += w * e * e;
+            den += w;
+            max = max.max(*e);
+        }
+        ((num / den).sqrt(), max)
+    };
+    let (rms0, max0) = figures(&act0);
+    let (rms1, max1) = figures(&act1);
+    Resimulated {
+        rms0,
+        max0,
+        rms1,
+        max1,
+        duration: cmd1.t.len() as f64 / cmd0.t.len() as f64,
+        tips1: tips(&act1),
+    }
+}
+
 /// Issue 24's finishing contour (a full circle R 10, then a 140° corner — the path turns by
 /// 40° — and a 90° corner, 15 mm legs) at F 2000 on a kv 40 cascade, through the contour
 /// pre-compensation; the returned text is read, interpolated and simulated here and measured
 /// against the *original* path. Gates (issue 24): distance-weighted RMS <= 0.3x the
 /// original's, max <= 0.5x, duration <= 1.15x, and the corners named where not fully helped.
 async fn contour_precompensation_at_corners(app: TestApp) {
-    use truecut::motion::{
-        DEFAULT_PERIOD_S, Machine, contour_error, interpolate, simulate_machine,
-    };
     let cascade = json!({"kv": 40.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
     let def = json!({"name": "kv 40 cascade", "kinematics": "xyz",
         "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
@@ -598,55 +672,14 @@ async fn contour_precompensation_at_corners(app: TestApp) {
         .map(|w| w.as_str().unwrap())
         .collect();
 
-    let m = Machine::from_json(&def).unwrap();
-    let read = |t: &str| parse_with(t, &ReadOptions::default()).unwrap().0;
-    let cmd0 = interpolate(&read(original), &m, DEFAULT_PERIOD_S, 2_000_000).unwrap();
-    let cmd1 = interpolate(&read(text), &m, DEFAULT_PERIOD_S, 2_000_000).unwrap();
-    let n = cmd0.t.len().max(cmd1.t.len());
-    let pad = |cols: &[Vec<f64>]| -> Vec<Vec<f64>> {
-        cols.iter()
-            .map(|c| {
-                let mut c = c.clone();
-                let last = *c.last().unwrap();
-                c.resize(n, last);
-                c
-            })
-            .collect()
-    };
-    let mut padded0 = cmd0.clone();
-    padded0.axes = pad(&cmd0.axes);
-    padded0.t = (0..n).map(|i| i as f64 * DEFAULT_PERIOD_S).collect();
-    let mut padded1 = cmd1.clone();
-    padded1.axes = pad(&cmd1.axes);
-    padded1.t = padded0.t.clone();
-    let act0 = simulate_machine(&m, &padded0).unwrap();
-    let act1 = simulate_machine(&m, &padded1).unwrap();
-    // Distance-weighted RMS: each period's distance to the original path weighted by the
-    // path length the tool tip covers around it.
-    let figures = |act: &[Vec<f64>]| {
-        let ce = contour_error(&m.kinematics, &padded0.axes, act, &cmd0.corners).contour_error;
-        let tip = |i: usize| [act[0][i], act[1][i], act[2][i]];
-        let d = |a: [f64; 3], b: [f64; 3]| {
-            ((a[0] - b[0]).powi(2) + (a[1] - b[1]).powi(2) + (a[2] - b[2]).powi(2)).sqrt()
-        };
-        let (mut num, mut den, mut max) = (0.0, 0.0, 0.0f64);
-        for (i, e) in ce.iter().enumerate() {
-            let back = if i > 0 { d(tip(i), tip(i - 1)) } else { 0.0 };
-            let fwd = if i + 1 < n {
-                d(tip(i + 1), tip(i))
-            } else {
-                0.0
-            };
-            let w = 0.5 * (back + fwd);
-            num += w * e * e;
-            den += w;
-            max = max.max(*e);
-        }
-        ((num / den).sqrt(), max)
-    };
-    let (rms0, max0) = figures(&act0);
-    let (rms1, max1) = figures(&act1);
-    let duration = cmd1.t.len() as f64 / cmd0.t.len() as f64;
+    let Resimulated {
+        rms0,
+        max0,
+        rms1,
+        max1,
+        duration,
+        ..
+    } = resimulate(&def, original, text);
     println!(
         "contour pre-compensation at corners, circle + 140° + 90° F2000 kv 40: distance-weighted \
          RMS {:.2} -> {:.2} um ({:.3}x, gate <= 0.3x, goal 0.1x); max {:.2} -> {:.2} um ({:.3}x, \
@@ -692,3 +725,101 @@ async fn contour_precompensation_at_corners(app: TestApp) {
     );
 }
 on_both_backends!(contour_precompensation_at_corners);
+
+/// A pocket's finishing pass (G41: material right of the path) with three sharp inside
+/// corners, F 2000 on a kv 40 cascade: the tool may not overshoot into the material there, so
+/// the answer stops at each corner (`G4 P<ms>` after the corner's G1 line, Fanuc's
+/// milliseconds) and says so, naming the line. Re-read, interpolated and simulated here:
+/// issue 24's gates against the original path, and the tool never more than 1 µm beyond the
+/// pocket's walls.
+async fn contour_precompensation_stops_at_inside_corners(app: TestApp) {
+    let cascade = json!({"kv": 40.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    let def = json!({"name": "kv 40 cascade", "kinematics": "xyz",
+        "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
+    let r = app.put_json("/v1/machines/m", &def).await;
+    assert!(r.status().is_success());
+    let original = "%\nO1003 (POCKET WALLS F2000)\nN10 G21 G90 G17 G94\n\
+                    N20 G41 G1 X10. F2000\nN30 Y10.\nN40 X0\nN50 Y0\nN60 G40\nM30\n%\n";
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": original, "contour": true}))
+        .await;
+    assert_eq!(r.status(), 200);
+    let body: Value = r.json().await.unwrap();
+    let text = body["gcode"].as_str().unwrap();
+    let warnings: Vec<&str> = body["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect();
+    let fig = resimulate(&def, original, text);
+    println!(
+        "contour pre-compensation at inside corners, 10 mm pocket G41 F2000 kv 40: \
+         distance-weighted RMS {:.2} -> {:.2} um ({:.3}x, gate <= 0.3x); max {:.2} -> {:.2} um \
+         ({:.3}x, gate <= 0.5x); duration {:.3}x (gate <= 1.15x)",
+        fig.rms0 * 1e3,
+        fig.rms1 * 1e3,
+        fig.rms1 / fig.rms0,
+        fig.max0 * 1e3,
+        fig.max1 * 1e3,
+        fig.max1 / fig.max0,
+        fig.duration
+    );
+    for w in &warnings {
+        println!("  warning: {w}");
+    }
+    assert!(
+        fig.rms1 <= 0.3 * fig.rms0,
+        "RMS {} vs {}",
+        fig.rms1,
+        fig.rms0
+    );
+    assert!(
+        fig.max1 <= 0.5 * fig.max0,
+        "max {} vs {}",
+        fig.max1,
+        fig.max0
+    );
+    assert!(fig.duration <= 1.15, "duration {}x", fig.duration);
+    // Into the material: beyond the walls x = 0, x = 10, y = 0, y = 10.
+    let gouge = fig
+        .tips1
+        .iter()
+        .map(|t| (t[0] - 10.0).max(-t[1]).max(t[1] - 10.0).max(-t[0]))
+        .fold(f64::MIN, f64::max);
+    assert!(gouge <= 1e-3, "the tool went {gouge} mm into the material");
+    // One stop after each corner's G1 line (N20, N30, N40: text lines 4, 5, 6), in whole
+    // milliseconds.
+    let lines: Vec<&str> = text.lines().collect();
+    let stops: Vec<usize> = (0..lines.len())
+        .filter(|&i| lines[i].starts_with("G4"))
+        .collect();
+    assert_eq!(stops.len(), 3, "{text}");
+    for &i in &stops {
+        let ms: f64 = lines[i]
+            .trim_start_matches("G4")
+            .trim()
+            .trim_start_matches('P')
+            .parse()
+            .unwrap();
+        assert!(
+            (1.0..=250.0).contains(&ms) && ms.fract() == 0.0,
+            "{}",
+            lines[i]
+        );
+        let prev = lines[i - 1];
+        assert!(
+            prev.contains('X') || prev.contains('Y'),
+            "a G4 follows a move: {prev}"
+        );
+    }
+    for n in [4, 5, 6] {
+        assert!(
+            warnings
+                .iter()
+                .any(|w| w.starts_with(&format!("line {n}: inside corner")) && w.contains("G4 P")),
+            "{warnings:?}"
+        );
+    }
+}
+on_both_backends!(contour_precompensation_stops_at_inside_corners);

@@ -18,7 +18,8 @@
 //! feed, and a cycle line that had R still has it.
 //!
 //! rs274 reads the answer with every line numbered `N<answer line>` (so that its moves name
-//! their line) and a tool table of zero lengths; its printout is in the program frame, which
+//! their line) and a tool table of zero lengths and diameters (so that G41/G42 leave the path
+//! as programmed, as truecut reads it); its printout is in the program frame, which
 //! is taken to the machine frame with the work offset and tool length truecut's reader has in
 //! force on that line. It prints four decimals of the program's unit, so its points are held
 //! within [`TOLERANCE_MM`] plus that rounding (0.05 µm per axis in mm, 1.27 µm in inch).
@@ -422,7 +423,7 @@ pub fn check(
             let file = dir.join(format!("{name}.ngc"));
             std::fs::write(&file, numbered(answer)).map_err(|e| e.to_string())?;
             let tools = dir.join("zero.tbl");
-            let table: String = (1..=99).map(|t| format!("T{t} P{t} Z0 D1 ;\n")).collect();
+            let table: String = (1..=99).map(|t| format!("T{t} P{t} Z0 D0 ;\n")).collect();
             std::fs::write(&tools, table).map_err(|e| e.to_string())?;
             let moves = rs274::run_with_tools(rs, &file, Some(&tools))
                 .map_err(|e| format!("{name}: rs274 refuses the answer: {e}"))?;

@@ -37,6 +37,19 @@
 //! for an unknown side: the program is taken as an outside contour, where a finishing pass's
 //! sharp corners usually are; a pocket's corners are rounded by its tool).
 //!
+//! Stops at inside corners. With the outer side closed, no loop can turn the tool at the
+//! junction speed without cutting the corner: the servo needs about `τ·v_j` of path to turn
+//! its velocity. An inside corner's search has a fourth coordinate, a stop at `P_in` (a G4
+//! dwell of whole milliseconds, at most [`MAX_STOP_S`]), tried first: the command halts at the
+//! corner, the tool comes to rest on the incoming line (the cascade's step response has no
+//! overshoot along the path) and leaves from rest along the outgoing one, so the turn cuts
+//! nothing; the time it takes is held to the corner's share of the budget like any other
+//! move. A stopping corner takes the points of its window as they lie on the original path
+//! (the earlier iteration's lateral corrections there were for a corner turned at speed and
+//! would now push the tool into the material). This is the machinist's exact stop at a sharp
+//! inside corner; the same 10 mm pocket at F 2000 on kv 40 with 40 ms dwells and no
+//! pre-distortion has 3.0 µm distance-weighted RMS against 17.3 µm without them.
+//!
 //! Reference: the servo lag and its feed-forward inverse, Zhang & Chen 2025 §3; the search,
 //! Hooke & Jeeves 1961 (pattern search with step halving).
 
@@ -215,14 +228,14 @@ pub(super) fn split_points(
     start: [f64; 3],
     base: &[[f64; 3]],
     corners: &[CornerSpot],
-    theta: &[[f64; 3]],
+    theta: &[[f64; 4]],
 ) -> Vec<[f64; 3]> {
     let mut out = Vec::with_capacity(base.len() + 2 * corners.len());
     let mut c = 0;
     for (k, p) in base.iter().enumerate() {
         if c < corners.len() && corners[c].k == k {
             let s = &corners[c];
-            let [di, dout, lead] = theta[c];
+            let [di, dout, lead, _] = theta[c];
             let prev = if k == 0 { start } else { base[k - 1] };
             let len = norm(sub(*p, prev)).max(1e-12);
             let f = (lead / len).min(1.0);
@@ -245,7 +258,7 @@ pub(super) fn split_feeds(
     reference: &Reference,
     base: &[f64],
     corners: &[CornerSpot],
-    theta: &[[f64; 3]],
+    theta: &[[f64; 4]],
 ) -> Vec<f64> {
     let mut out = base.to_vec();
     for (c, s) in corners.iter().enumerate() {
@@ -379,34 +392,90 @@ pub(super) struct CornerResult {
     pub simulations: usize,
 }
 
-const DIRS: [[f64; 3]; 6] = [
-    [0.0, 0.0, 5.0],
-    [1.0, 0.0, 0.0],
-    [0.0, 1.0, 0.0],
-    [0.0, 0.0, -5.0],
-    [-1.0, 0.0, 0.0],
-    [0.0, -1.0, 0.0],
+/// Search directions in `(δ_in, δ_out, L, stop)` at an outside corner.
+const DIRS: [[f64; 4]; 6] = [
+    [0.0, 0.0, 5.0, 0.0],
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, -5.0, 0.0],
+    [-1.0, 0.0, 0.0, 0.0],
+    [0.0, -1.0, 0.0, 0.0],
 ];
 
+/// Search directions at an inside corner: its stop first (a stop with the command carried
+/// past the corner would park the tool beyond it, in the material).
+const DIRS_INSIDE: [[f64; 4]; 8] = [
+    [0.0, 0.0, 0.0, 1.0],
+    [0.0, 0.0, 5.0, 0.0],
+    [1.0, 0.0, 0.0, 0.0],
+    [0.0, 1.0, 0.0, 0.0],
+    [0.0, 0.0, 0.0, -1.0],
+    [0.0, 0.0, -5.0, 0.0],
+    [-1.0, 0.0, 0.0, 0.0],
+    [0.0, -1.0, 0.0, 0.0],
+];
+
+/// Seconds of stop at an inside corner per mm of the search's fourth coordinate (its first
+/// step, 0.02, is a 20 ms stop).
+const STOP_S_PER_MM: f64 = 1.0;
+
+/// Longest stop at an inside corner, s.
+pub const MAX_STOP_S: f64 = 0.25;
+
+/// The stop (s, whole milliseconds, as `G4 P<ms>` writes it) of the search's fourth
+/// coordinate `x` (mm-equivalent).
+fn stop_s(x: f64) -> f64 {
+    (x * STOP_S_PER_MM * 1e3).round().max(0.0) / 1e3
+}
+
+/// Dwell (s) of each of the `m` split points for `theta`: the stop of each inside corner at
+/// its `P_in` (the end of the incoming move), 0 elsewhere.
+pub(super) fn split_dwells(m: usize, corners: &[CornerSpot], theta: &[[f64; 4]]) -> Vec<f64> {
+    let mut out = vec![0.0; m];
+    for (c, s) in corners.iter().enumerate() {
+        if let Some(d) = out.get_mut(s.k + 2 * c + 1) {
+            *d = stop_s(theta[c][3]);
+        }
+    }
+    out
+}
+
 /// What [`search`] returns: its outcome, the split points, their programmed feeds (mm/min,
-/// as [`Run::evaluate_with`] takes them) and their simulation.
-pub(super) type Searched = (CornerResult, Vec<[f64; 3]>, Vec<f64>, Eval);
+/// as [`Run::evaluate_with`] takes them), their dwells (s) and their simulation.
+pub(super) type Searched = (CornerResult, Vec<[f64; 3]>, Vec<f64>, Vec<f64>, Eval);
 
 /// Pattern search of `(δ_in, δ_out, L)` of every corner (module docs) on the points `base`,
 /// evaluated by `run` (whose per-point data are already split). `orig_periods` is the
 /// original program's length in periods.
+///
+/// An inside corner that stops takes the points of its window from `undistorted` (the
+/// points on the original path, arc parameters `sigma`) instead of `base`: the tool leaves
+/// the corner from rest along a straight move, where the earlier iteration's lateral
+/// corrections of the corner's cut would only push it into the material.
 pub(super) fn search(
     run: &Run,
     base: &[[f64; 3]],
+    undistorted: &[[f64; 3]],
+    sigma: &[f64],
     corners: &[CornerSpot],
     orig_periods: usize,
 ) -> Result<Searched, Error> {
     let n = corners.len();
-    let mut theta = vec![[0.0f64; 3]; n];
-    let eval = |th: &[[f64; 3]]| -> Result<(Vec<[f64; 3]>, Eval), Error> {
-        let pts = split_points(run.start, base, corners, th);
+    let mut theta = vec![[0.0f64; 4]; n];
+    let eval = |th: &[[f64; 4]]| -> Result<(Vec<[f64; 3]>, Eval), Error> {
+        let mut b = base.to_vec();
+        for (c, s) in corners.iter().enumerate() {
+            if stop_s(th[c][3]) > 0.0 {
+                for k in 0..b.len() {
+                    if (s.lo..=s.hi).contains(&sigma[k]) {
+                        b[k] = undistorted[k];
+                    }
+                }
+            }
+        }
+        let pts = split_points(run.start, &b, corners, th);
         let feeds = split_feeds(&run.reference, &run.base_feed, corners, th);
-        let e = run.evaluate_with(&pts, &feeds)?;
+        let e = run.evaluate_dwelling(&pts, &feeds, &split_dwells(pts.len(), corners, th))?;
         Ok((pts, e))
     };
     let (mut pts, mut cur_eval) = eval(&theta)?;
@@ -431,9 +500,24 @@ pub(super) fn search(
                 continue;
             }
             let cap = corners[c].cap_mm;
-            let bounds = [(0.0, cap), (-cap, cap), (0.0, corners[c].cap_lead_mm)];
+            let stop = if corners[c].outside {
+                0.0
+            } else {
+                MAX_STOP_S / STOP_S_PER_MM
+            };
+            let bounds = [
+                (0.0, cap),
+                (-cap, cap),
+                (0.0, corners[c].cap_lead_mm),
+                (0.0, stop),
+            ];
+            let dirs: &[[f64; 4]] = if corners[c].outside {
+                &DIRS
+            } else {
+                &DIRS_INSIDE
+            };
             for (d, (lo, hi)) in bounds.iter().enumerate() {
-                trial[c][d] = (theta[c][d] + step[c] * DIRS[dir[c]][d]).clamp(*lo, *hi);
+                trial[c][d] = (theta[c][d] + step[c] * dirs[dir[c]][d]).clamp(*lo, *hi);
             }
         }
         let (_, e) = eval(&trial)?;
@@ -462,9 +546,14 @@ pub(super) fn search(
             if better && gouge_ok && !time_ok {
                 refused_time[c] += 1;
             }
-            dir[c] = (dir[c] + 1) % DIRS.len();
+            let dirs = if corners[c].outside {
+                DIRS.len()
+            } else {
+                DIRS_INSIDE.len()
+            };
+            dir[c] = (dir[c] + 1) % dirs;
             fails[c] += 1;
-            if fails[c] >= DIRS.len() {
+            if fails[c] >= dirs {
                 fails[c] = 0;
                 step[c] *= 0.5;
                 if step[c] < STEP_MIN_MM {
@@ -488,6 +577,7 @@ pub(super) fn search(
             cur = score(&run.reference, corners, &cur_eval);
         }
     }
+    let dwells = split_dwells(pts.len(), corners, &theta);
     Ok((
         CornerResult {
             before,
@@ -498,6 +588,7 @@ pub(super) fn search(
         },
         pts,
         split_feeds(&run.reference, &run.base_feed, corners, &theta),
+        dwells,
         cur_eval,
     ))
 }

@@ -230,7 +230,7 @@ fn feeds_for(
     corners: &[CornerSpot],
     pts: &[[f64; 3]],
 ) -> Vec<f64> {
-    let theta: Vec<[f64; 3]> = corners
+    let theta: Vec<[f64; 4]> = corners
         .iter()
         .enumerate()
         .map(|(c, s)| {
@@ -238,7 +238,7 @@ fn feeds_for(
             let corner = reference.knots[at.min(reference.knots.len() - 1)];
             let q = pts[s.k + 2 * c];
             let lead = (0..3).map(|d| (corner[d] - q[d]) * s.d_in[d]).sum::<f64>();
-            [0.0, 0.0, lead.max(0.0)]
+            [0.0, 0.0, lead.max(0.0), 0.0]
         })
         .collect();
     corners::split_feeds(reference, feeds, corners, &theta)

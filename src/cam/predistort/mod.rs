@@ -34,7 +34,8 @@
 //! finds their offsets by pattern search on the same simulation, refusing moves that take the
 //! tool into the material (at an inside corner, more than [`GOUGE_LIMIT_MM`] beyond the path
 //! outside the turn; the material side from G41/G42, without them every corner an outside
-//! corner whose outer side is free: [`predistort_sided`]) or past the corner's share of
+//! corner whose outer side is free: [`predistort_sided`]; an inside corner may stop instead,
+//! a G4 dwell at the corner, [`PredistortPoint::dwell_s`]) or past the corner's share of
 //! [`TIME_BUDGET`]; iteration steps that gouge at such a corner, or take the program past the
 //! budget, are taken back. Then the corner-window ILC (module `ilc`) moves every point near
 //! each such corner (the braking and accelerating stretches with the three split points) by
@@ -61,7 +62,7 @@ use crate::motion::gcode::{Block, Motion};
 use crate::motion::{self, Kinematics, Machine, Program, contour_error, predict_program};
 pub use corners::{GOUGE_LIMIT_MM, TIME_BUDGET};
 use limits::{junction_limits, refuse_sharp_junctions, turns_above};
-use notes::{corner_notes, refusal_notes, residual_notes};
+use notes::{corner_notes, refusal_notes, residual_notes, stop_notes};
 use reference::{Reference, correction, smooth};
 use run::{Eval, Run, ceil_to, norm, round_to, sub};
 
@@ -113,6 +114,9 @@ pub struct PredistortPoint {
     /// Feed of the G01 block, mm/min (≥ the programmed feed of `line`; rounded up to
     /// [`FEED_DECIMALS`]).
     pub feed_mm_min: f64,
+    /// Dwell at the point after the G01 block, s (whole milliseconds; 0: none): the stop the
+    /// corner stage makes at an inside corner (module `corners`), written as `G4 P<ms>`.
+    pub dwell_s: f64,
     /// 1-based source line of the original block this point replaces (part of).
     pub line: usize,
 }
@@ -296,6 +300,7 @@ pub fn predistort_sided(
         reference,
         lines: lines.clone(),
         kept,
+        dwell_s: Vec::new(),
     };
     let init_limits = junction_limits(machine, opts.period_s, start, &pts0);
     let half_mm: Vec<f64> = run
@@ -395,6 +400,7 @@ pub fn predistort_sided(
     let mut corner_result = None;
     let mut ilc_bound = None;
     if !spots.is_empty() {
+        let sigma0 = run.sigma.clone();
         let next = |v: &[f64], k: usize| v[(k + 1).min(v.len() - 1)];
         run.base_feed = corners::split_values(&run.base_feed, &spots, |k| {
             [run.base_feed[k], next(&run.base_feed, k)]
@@ -403,8 +409,10 @@ pub fn predistort_sided(
         run.sigma = corners::split_values(&run.sigma, &spots, |k| [run.sigma[k]; 2]);
         lines = corners::split_values(&lines, &spots, |k| [lines[k], next_line(&lines, k)]);
         run.lines = lines.clone();
-        let (mut res, pts, feeds, e) = corners::search(&run, &cur, &spots, run.orig_periods)?;
+        let (mut res, pts, feeds, dwells, e) =
+            corners::search(&run, &cur, &pts0, &sigma0, &spots, run.orig_periods)?;
         iterations += res.simulations;
+        run.dwell_s = dwells;
         let fixed_point = |j: usize| run.kept.contains_key(&run.lines[j]);
         let (pts, e, ilc_out) =
             ilc::refine(&run, pts, &feeds, e, &spots, &res.before, &fixed_point)?;
@@ -472,6 +480,7 @@ pub fn predistort_sided(
     let not_corner = |n: &String| !corner_lines.iter().any(|l| n.starts_with(l.as_str()));
     notes.extend(refusal.into_iter().filter(not_corner));
     if let Some(res) = &corner_result {
+        notes.extend(stop_notes(&spots, res, &run.dwell_s));
         notes.extend(corner_notes(&spots, res));
     }
     if let (Some(steps), Some(first)) = (ilc_bound, spots.first()) {
@@ -504,9 +513,11 @@ pub fn predistort_sided(
         .iter()
         .zip(&cur_eval.feeds)
         .zip(&lines)
-        .map(|((p, f), l)| PredistortPoint {
+        .enumerate()
+        .map(|(k, ((p, f), l))| PredistortPoint {
             axes: p.to_vec(),
             feed_mm_min: *f,
+            dwell_s: run.dwell_s.get(k).copied().unwrap_or(0.0),
             line: *l,
         })
         .collect();

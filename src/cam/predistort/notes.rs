@@ -55,6 +55,40 @@ pub(super) fn corner_notes(spots: &[CornerSpot], res: &CornerResult) -> Vec<Stri
     out
 }
 
+/// One sentence per inside corner where the compensated program stops (`dwells`, s per
+/// split point; corner `c`'s `P_in` is point `k + 2c + 1`), at most 20: the stop is a change
+/// a machinist should know of (the tool rests against the wall there).
+pub(super) fn stop_notes(spots: &[CornerSpot], res: &CornerResult, dwells: &[f64]) -> Vec<String> {
+    let mut out = Vec::new();
+    let mut more = 0;
+    for (c, s) in spots.iter().enumerate() {
+        let stop = dwells.get(s.k + 2 * c + 1).copied().unwrap_or(0.0);
+        if stop <= 0.0 {
+            continue;
+        }
+        if out.len() >= 20 {
+            more += 1;
+            continue;
+        }
+        out.push(format!(
+            "line {}: inside corner (turn {:.0}°, material outside the turn by G41/G42): the \
+             compensated program stops {:.0} ms at the corner (G4 P{:.0}, milliseconds as \
+             Fanuc reads P) so that the tool reaches the corner before it turns, since an \
+             overshoot there would cut into the material; contour error {:.1} → {:.1} µm (max)",
+            s.line,
+            s.turn_rad.to_degrees(),
+            stop * 1e3,
+            stop * 1e3,
+            res.before[c].max * 1e3,
+            res.after[c].max * 1e3,
+        ));
+    }
+    if more > 0 {
+        out.push(format!("and {more} more inside corners with a stop"));
+    }
+    out
+}
+
 /// One sentence per source line where pre-distortion steps were refused.
 pub(super) fn refusal_notes(
     machine: &Machine,

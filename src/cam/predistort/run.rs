@@ -50,8 +50,10 @@ pub(super) fn norm(a: [f64; 3]) -> f64 {
     (a[0] * a[0] + a[1] * a[1] + a[2] * a[2]).sqrt()
 }
 
-/// The G01 program through `pts` from `start` at `feeds` (mm/min); block `k` carries line
-/// `k + 1` so that the interpolation's line tags name the point. A run of points whose source
+/// The G01 program through `pts` from `start` at `feeds` (mm/min), standing `dwells[k]` s at
+/// point `k` where that is above zero (a G4 block; `dwells` may be shorter than `pts`, the
+/// rest 0); block `k` (and its dwell) carries line `k + 1` so that the interpolation's line
+/// tags name the point. A run of points whose source
 /// line (`lines`) is in `kept` is replaced by that line's original blocks (rapids, canned
 /// cycles: written as programmed), tagged with the run's last point, the first starting at
 /// the point before.
@@ -59,6 +61,7 @@ pub(super) fn program_of(
     start: [f64; 3],
     pts: &[[f64; 3]],
     feeds: &[f64],
+    dwells: &[f64],
     lines: &[usize],
     kept: &BTreeMap<usize, Vec<Block>>,
 ) -> Program {
@@ -99,6 +102,21 @@ pub(super) fn program_of(
             feed: Feed::PerMinute(feeds[k]),
             rtcp: false,
         });
+        if let Some(&seconds) = dwells.get(k).filter(|&&s| s > 0.0) {
+            let at = Pose {
+                xyz: pts[k],
+                a: 0.0,
+                c: 0.0,
+            };
+            blocks.push(Block {
+                line: k + 1,
+                motion: Motion::Dwell { seconds },
+                start: at,
+                end: at,
+                feed: Feed::Rapid,
+                rtcp: false,
+            });
+        }
         prev = pts[k];
         k += 1;
     }
@@ -127,6 +145,8 @@ pub(super) struct Run<'a> {
     pub lines: Vec<usize>,
     /// Lines written as programmed (see [`predistort_keeping`]) and their original blocks.
     pub kept: BTreeMap<usize, Vec<Block>>,
+    /// Dwell at each point, s (the corner stage's stops at inside corners; empty: none).
+    pub dwell_s: Vec<f64>,
 }
 
 impl Run<'_> {
@@ -170,8 +190,18 @@ impl Run<'_> {
 
     /// [`Run::evaluate`] with the programmed feeds `base_feed` (mm/min) in place of the run's.
     pub fn evaluate_with(&self, pts: &[[f64; 3]], base_feed: &[f64]) -> Result<Eval, Error> {
+        self.evaluate_dwelling(pts, base_feed, &self.dwell_s)
+    }
+
+    /// [`Run::evaluate_with`] with the dwells `dwells` (s per point) in place of the run's.
+    pub fn evaluate_dwelling(
+        &self,
+        pts: &[[f64; 3]],
+        base_feed: &[f64],
+        dwells: &[f64],
+    ) -> Result<Eval, Error> {
         let feeds = self.feeds_with(pts, base_feed);
-        let program = program_of(self.start, pts, &feeds, &self.lines, &self.kept);
+        let program = program_of(self.start, pts, &feeds, dwells, &self.lines, &self.kept);
         let mut cmd = interpolate(&program, self.machine, self.period_s, MAX_PERIODS)?;
         let periods = cmd.t.len();
         let line = std::mem::take(&mut cmd.line);

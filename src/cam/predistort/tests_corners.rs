@@ -193,6 +193,22 @@ fn check_corner_goals(
             "G1 X{:.4} Y{:.4} Z{:.4} F{:.3}\n",
             p.axes[0], p.axes[1], p.axes[2], p.feed_mm_min
         );
+        if p.dwell_s > 0.0 {
+            g += &format!("G4 P{}\n", (p.dwell_s * 1e3).round());
+        }
+    }
+    assert!(
+        side.is_some() || out.points.iter().all(|p| p.dwell_s == 0.0),
+        "{name}: a stop at an outside corner"
+    );
+    let stops: Vec<String> = out
+        .points
+        .iter()
+        .filter(|p| p.dwell_s > 0.0)
+        .map(|p| format!("line {} {:.0} ms", p.line, p.dwell_s * 1e3))
+        .collect();
+    if !stops.is_empty() {
+        println!("  stops at inside corners: {}", stops.join(", "));
     }
     let periods = interpolate(&gcode::parse(&g).unwrap(), &m, 1e-3, MAX_PERIODS)
         .unwrap()
@@ -352,22 +368,38 @@ fn square_corners() {
 /// pocket): the tool must never go more than 1 µm beyond the path outside the turn.
 #[test]
 fn inside_corners_do_not_gouge() {
-    let why = "at an inside corner the tool may not pass the corner outside the turn (1 µm), \
-        so no overshoot loop can turn it: the corner stays cut by the servo's lag at the \
-        junction speed; the corner-window ILC's steps that lower the largest error (60 → \
-        52 µm) all take the tool 2–7 µm beyond the path outside the turn";
     let out = check_corner_goals(
         "10 mm square, inside corners (G41) F2000",
         40.0,
         &square(2000.0),
         Some(MaterialSide::Right),
-        Expect::Miss {
-            rms: 0.5,
-            max: 0.65,
-            why,
-        },
+        Expect::Gates,
     );
     assert!(out.compensated.gouge_mm <= GOUGE_LIMIT_MM);
+    // The tool stops at each of the three inside corners (the fourth is the program's end),
+    // and nowhere else; each stop is named in a note.
+    let stops: Vec<(usize, f64)> = out
+        .points
+        .iter()
+        .filter(|p| p.dwell_s > 0.0)
+        .map(|p| (p.line, p.dwell_s))
+        .collect();
+    assert_eq!(
+        stops.iter().map(|s| s.0).collect::<Vec<_>>(),
+        [2, 3, 4],
+        "{stops:?}"
+    );
+    for (line, s) in &stops {
+        assert!(*s <= corners::MAX_STOP_S && (s * 1e3).fract() == 0.0, "{s}");
+        assert!(
+            out.notes
+                .iter()
+                .any(|n| n.starts_with(&format!("line {line}: inside corner"))
+                    && n.contains(&format!("G4 P{:.0}", s * 1e3))),
+            "{:?}",
+            out.notes
+        );
+    }
 }
 
 /// Programs the ILC's settings were not chosen on (held out: other sizes, feeds, gains and
@@ -400,19 +432,12 @@ fn held_out_corner_programs() {
     check_corner_goals("120° turns F2500", 45.0, &turns, None, Expect::Gates);
     let arc = "G90 G17 G94\nG1 X15 F2000\nG2 X27 Y0 I6 J0\nG1 X40\n";
     check_corner_goals("line–arc R6–line F2000", 40.0, arc, None, Expect::Gates);
-    let why = "inside corners (G41): as for the 10 mm square, the tool may not pass the corner \
-        outside the turn, so the corner stays cut by the servo's lag at the junction speed";
-    let miss = Expect::Miss {
-        rms: 0.75,
-        max: 0.85,
-        why,
-    };
     let pocket = sq(8.0, 1500.0);
     check_corner_goals(
         "8 mm square G41 F1500",
         50.0,
         &pocket,
         Some(MaterialSide::Right),
-        miss,
+        Expect::Gates,
     );
 }
