@@ -294,21 +294,12 @@ fn short_segments_improve() {
 /// Arcs meeting lines at 90° corners.
 #[test]
 fn arc_line_corners() {
-    let why = "the G01 points of the arc's speed ramp after the line–arc corner already take \
-        7.5 % longer than the arc itself (every G01 block ramps from zero acceleration), so \
-        the 1.15× time budget stops the corner stage early and leaves the corner-window ILC \
-        no time to spend (1.14×)";
-    let miss = Expect::Miss {
-        rms: 0.9,
-        max: 0.5,
-        why,
-    };
     check_corner_goals(
         "line–half circle R10–line F3000",
         30.0,
         &arc_line(3000.0),
         None,
-        miss,
+        Expect::Gates,
     );
     check_corner_goals(
         "line–half circle R10–line F1000",
