@@ -43,6 +43,9 @@
 //! system), under the same gouge rule and a 14 % time budget for both stages together, within
 //! a work bound of simulated periods (a note says when it stops there).
 //! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
+//! Where a speed ramp runs on an arc, the whole run is repeated with the ramps' points within
+//! [`RAMP_CHORD_TOL_MM`] (fewer G01 blocks, each of which restarts the ramp's acceleration)
+//! and the better of the two answers kept ([`predistort_sided`]).
 //!
 //! Bad cases: machines with rotary axes (`xyzac_table`) and programs with dwells (G4) are
 //! refused ([`Error::Unsupported`]); blocks of one line that a canned cycle expands take the
