@@ -568,6 +568,35 @@ async fn contour_precompensation(app: TestApp) {
 }
 on_both_backends!(contour_precompensation);
 
+/// Machine `m`: the demo cascade with kv 40 on X, Y, Z (PUT through the API); its definition.
+async fn kv40_machine(app: &TestApp) -> Value {
+    let cascade = json!({"kv": 40.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    let def = json!({"name": "kv 40 cascade", "kinematics": "xyz",
+        "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
+    let r = app.put_json("/v1/machines/m", &def).await;
+    assert!(r.status().is_success());
+    def
+}
+
+/// The JSON answer (200) of `original` through the contour pre-compensation on machine `m`.
+async fn contour_answer(app: &TestApp, original: &str) -> Value {
+    let r = app
+        .post_json(PROGRAM, &json!({"gcode": original, "contour": true}))
+        .await;
+    assert_eq!(r.status(), 200);
+    r.json().await.unwrap()
+}
+
+/// The answer's warnings.
+fn warnings_of(body: &Value) -> Vec<&str> {
+    body["warnings"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|w| w.as_str().unwrap())
+        .collect()
+}
+
 /// What the returned program does on machine `def` against the *original* path, both read,
 /// interpolated and simulated here (padded at rest to the same length): distance-weighted RMS
 /// (each period's distance to the original path weighted by the path length the tool tip
@@ -651,26 +680,13 @@ fn resimulate(def: &Value, original: &str, answer: &str) -> Resimulated {
 /// against the *original* path. Gates (issue 24): distance-weighted RMS <= 0.3x the
 /// original's, max <= 0.5x, duration <= 1.15x, and the corners named where not fully helped.
 async fn contour_precompensation_at_corners(app: TestApp) {
-    let cascade = json!({"kv": 40.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
-    let def = json!({"name": "kv 40 cascade", "kinematics": "xyz",
-        "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
-    let r = app.put_json("/v1/machines/m", &def).await;
-    assert!(r.status().is_success());
+    let def = kv40_machine(&app).await;
     let original = "%\nO1002 (CIRCLE AND CORNERS F2000)\nN10 G21 G90 G17 G94\n\
                     N20 G1 X0 Y15. F2000\nN30 G3 X0 Y15. I-10. J0\nN40 G1 Y30.\n\
                     N50 G1 X-9.6418 Y41.4907\nN60 G1 X-21.1325 Y31.8489\nM30\n%\n";
-    let r = app
-        .post_json(PROGRAM, &json!({"gcode": original, "contour": true}))
-        .await;
-    assert_eq!(r.status(), 200);
-    let body: Value = r.json().await.unwrap();
+    let body = contour_answer(&app, original).await;
     let text = body["gcode"].as_str().unwrap();
-    let warnings: Vec<&str> = body["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap())
-        .collect();
+    let warnings = warnings_of(&body);
 
     let Resimulated {
         rms0,
@@ -733,25 +749,12 @@ on_both_backends!(contour_precompensation_at_corners);
 /// issue 24's gates against the original path, and the tool never more than 1 µm beyond the
 /// pocket's walls.
 async fn contour_precompensation_stops_at_inside_corners(app: TestApp) {
-    let cascade = json!({"kv": 40.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
-    let def = json!({"name": "kv 40 cascade", "kinematics": "xyz",
-        "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
-    let r = app.put_json("/v1/machines/m", &def).await;
-    assert!(r.status().is_success());
+    let def = kv40_machine(&app).await;
     let original = "%\nO1003 (POCKET WALLS F2000)\nN10 G21 G90 G17 G94\n\
                     N20 G41 G1 X10. F2000\nN30 Y10.\nN40 X0\nN50 Y0\nN60 G40\nM30\n%\n";
-    let r = app
-        .post_json(PROGRAM, &json!({"gcode": original, "contour": true}))
-        .await;
-    assert_eq!(r.status(), 200);
-    let body: Value = r.json().await.unwrap();
+    let body = contour_answer(&app, original).await;
     let text = body["gcode"].as_str().unwrap();
-    let warnings: Vec<&str> = body["warnings"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|w| w.as_str().unwrap())
-        .collect();
+    let warnings = warnings_of(&body);
     let fig = resimulate(&def, original, text);
     println!(
         "contour pre-compensation at inside corners, 10 mm pocket G41 F2000 kv 40: \
