@@ -31,8 +31,10 @@
 //! the turn, so the carried-past command may not make the tool overshoot. At an outside
 //! corner (the material inside the turn, as around a boss) the outer side is free: the
 //! command loops out there and the tool's overshoot is error like any other, counted in the
-//! figures; the tool may not cut deeper into the inside of the turn than it did at the start
-//! of the search. The program says which (G41: material right of the path, G42: left, see
+//! figures; a move may not make the tool cut deeper into the inside of the turn than the
+//! search's current point does (so never deeper than at its start; letting a move cut back
+//! down to the start's depth was tried and is no better on the corner table). The program
+//! says which (G41: material right of the path, G42: left, see
 //! [`corner_is_outside`]); without G41/G42 every corner is read as an outside corner (the rule
 //! for an unknown side: the program is taken as an outside contour, where a finishing pass's
 //! sharp corners usually are; a pocket's corners are rounded by its tool).
