@@ -9,7 +9,7 @@
 use std::time::Instant;
 
 use serde_json::json;
-use truecut::cam::{PredistortOptions, predistort};
+use truecut::cam::{DEFAULT_MAX_DURATION_RATIO, PredistortOptions, predistort};
 use truecut::motion::{Machine, Program, gcode, predict_program};
 
 fn machine() -> Machine {
@@ -47,6 +47,7 @@ fn run(name: &str, m: &Machine, prog: &Program) {
     let opts = PredistortOptions {
         period_s: 1e-3,
         max_iterations: 30,
+        max_duration_ratio: DEFAULT_MAX_DURATION_RATIO,
     };
     // Warm-up, then the best of three of each.
     let _ = predistort(m, prog, &opts).expect("predistort");

@@ -124,6 +124,10 @@ pub struct ProgramRequest {
     /// Interpolation period of the contour model, s.
     #[serde(default)]
     pub period_s: Option<f64>,
+    /// With `contour`: longest duration of the answer as a multiple of the original
+    /// program's, 1..=2 (default 1.15): the time the corners may take.
+    #[serde(default)]
+    pub max_duration_ratio: Option<f64>,
     /// Largest distance of the written path from the compensated path, mm (default 0.001).
     #[serde(default)]
     pub tolerance_mm: Option<f64>,
@@ -271,6 +275,16 @@ async fn compensated_program(
     if let Some(p) = req.period_s {
         check_period(p)?;
     }
+    let max_duration_ratio = req
+        .max_duration_ratio
+        .unwrap_or(cam::DEFAULT_MAX_DURATION_RATIO);
+    if !(1.0..=cam::MAX_DURATION_RATIO).contains(&max_duration_ratio) {
+        return Err(ApiError::bad_request(format!(
+            "max_duration_ratio must be within 1..{} (the compensated program's duration over the \
+             original's; 1.15 by default), got {max_duration_ratio}",
+            cam::MAX_DURATION_RATIO
+        )));
+    }
     // The definition's home and G30 position; its errors matter only for a contour.
     let def = require_machine_def(&state, &machine).await;
     let (home, g30) = def.as_ref().map_or((None, None), |d| (d.home, d.g30));
@@ -320,10 +334,15 @@ async fn compensated_program(
                     tolerance_mm,
                     &machine,
                     period_s,
+                    max_duration_ratio,
                 )?,
-                (None, Some(machine)) => {
-                    cam::contour_program(&req.gcode, &options, &machine, period_s)?
-                }
+                (None, Some(machine)) => cam::contour_program(
+                    &req.gcode,
+                    &options,
+                    &machine,
+                    period_s,
+                    max_duration_ratio,
+                )?,
                 (None, None) => unreachable!("volumetric or contour was checked above"),
             };
             let figures = ContourFigures {

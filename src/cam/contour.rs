@@ -52,8 +52,9 @@ pub fn contour_program(
     options: &ReadOptions,
     machine: &Machine,
     period_s: f64,
+    max_duration_ratio: f64,
 ) -> Result<(Compensated, Predistorted), Error> {
-    let pass = contour_pass(text, options, machine, period_s, None)?;
+    let pass = contour_pass(text, options, machine, period_s, max_duration_ratio, None)?;
     let mut out = pass.out;
     let mut warnings = pass.reader_warnings;
     warnings.append(&mut out.warnings);
@@ -73,9 +74,17 @@ pub fn volumetric_and_contour(
     tolerance_mm: f64,
     machine: &Machine,
     period_s: f64,
+    max_duration_ratio: f64,
 ) -> Result<(Compensated, Predistorted), Error> {
     let v = compensate_program(text, options, field, tolerance_mm)?;
-    let pass = contour_pass(&v.gcode, options, machine, period_s, Some(&v.source_lines))?;
+    let pass = contour_pass(
+        &v.gcode,
+        options,
+        machine,
+        period_s,
+        max_duration_ratio,
+        Some(&v.source_lines),
+    )?;
     let mut out = pass.out;
     let mut warnings = v.warnings;
     warnings.append(&mut out.warnings);
@@ -143,6 +152,7 @@ fn contour_pass(
     options: &ReadOptions,
     machine: &Machine,
     period_s: f64,
+    max_duration_ratio: f64,
     source_lines: Option<&[usize]>,
 ) -> Result<Pass, Error> {
     let src = |l: usize| {
@@ -214,6 +224,7 @@ fn contour_pass(
         &PredistortOptions {
             period_s,
             max_iterations: MAX_ITERATIONS,
+            max_duration_ratio,
         },
         &keep,
         &side,

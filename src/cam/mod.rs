@@ -27,8 +27,8 @@ pub use field::ErrorField;
 pub use paths::{CompensatedArc, Shifter, arc_point, arc_points, linear_points};
 pub use points::{CompensatedPoints, compensate_points, points_from_csv, points_to_csv};
 pub use predistort::{
-    ErrorStats, MaterialSide, PredistortOptions, PredistortPoint, Predistorted, predistort,
-    predistort_keeping, predistort_sided,
+    DEFAULT_MAX_DURATION_RATIO, ErrorStats, MAX_DURATION_RATIO, MaterialSide, PredistortOptions,
+    PredistortPoint, Predistorted, predistort, predistort_keeping, predistort_sided,
 };
 pub use program::{
     Compensated, DEFAULT_TOLERANCE_MM, MAX_OUTPUT_BLOCKS, MAX_TOLERANCE_MM, MIN_TOLERANCE_MM,

@@ -45,6 +45,10 @@ pub struct Args {
     /// Interpolation period of the contour model, s (service default 0.001).
     #[arg(long)]
     pub period_s: Option<f64>,
+    /// With --contour: longest duration of the compensated program as a multiple of the
+    /// original's, 1..2 (service default 1.15); more lets close corners slow further.
+    #[arg(long)]
+    pub max_duration_ratio: Option<f64>,
     /// Largest distance of the written path from the compensated path, mm (service default
     /// 0.001).
     #[arg(long)]
@@ -94,6 +98,9 @@ fn body(args: &Args, gcode: &str) -> anyhow::Result<Value> {
     }
     if let Some(t) = args.tolerance_mm {
         b["tolerance_mm"] = json!(t);
+    }
+    if let Some(r) = args.max_duration_ratio {
+        b["max_duration_ratio"] = json!(r);
     }
     let mut offsets = BTreeMap::new();
     for w in &args.work_offsets {

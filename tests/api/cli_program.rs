@@ -244,6 +244,17 @@ async fn contour_as_a_followed_job_and_exit_codes() {
     let out = truecut(&argv, b"").await;
     assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
     assert!(out.stdout.is_empty());
+    // --max-duration-ratio reaches the service, which refuses a ratio outside 1..2.
+    let mut argv = base.to_vec();
+    argv.extend(offset);
+    argv.extend(["--contour", "--max-duration-ratio", "3", nc]);
+    let out = truecut(&argv, b"").await;
+    assert_eq!(out.status.code(), Some(3), "{}", stderr(&out));
+    assert!(
+        stderr(&out).contains("max_duration_ratio must be within 1..2"),
+        "{}",
+        stderr(&out)
+    );
     // 4: nothing listens there.
     let closed = {
         let l = std::net::TcpListener::bind("127.0.0.1:0").unwrap();

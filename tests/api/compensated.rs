@@ -826,3 +826,89 @@ async fn contour_precompensation_stops_at_inside_corners(app: TestApp) {
     }
 }
 on_both_backends!(contour_precompensation_stops_at_inside_corners);
+
+/// Ten 90° corners 2 mm apart at F 2000 on a kv 40 cascade (a staircase): within the default
+/// duration budget (1.15× the original's) the corners cannot slow enough, and the warnings
+/// say that time held them back and name `max_duration_ratio`; with `"max_duration_ratio":
+/// 1.3` the answer, re-read, interpolated and simulated here, meets issue 24's error gates
+/// within 1.3× the original's duration. A ratio outside 1..2 is refused (400) before any work.
+async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
+    let def = kv40_machine(&app).await;
+    let mut original =
+        String::from("%\nO1004 (STAIRCASE 2 MM F2000)\nG21 G90 G17 G94\nG1 X2. F2000\n");
+    for k in 1..=5 {
+        original += &format!("G1 Y{}.\nG1 X{}.\n", 2 * k, 2 * k + 2);
+    }
+    original += "M30\n%\n";
+    let default = contour_answer(&app, &original).await;
+    let slow = warnings_of(&default)
+        .into_iter()
+        .filter(|w| w.contains("duration budget (max_duration_ratio 1.15"))
+        .count();
+    assert!(slow >= 1, "{:?}", warnings_of(&default));
+    let fig = resimulate(&def, &original, default["gcode"].as_str().unwrap());
+    println!(
+        "2 mm staircase F2000 kv 40, max_duration_ratio 1.15 (default): distance-weighted RMS \
+         {:.2} -> {:.2} um ({:.3}x), max {:.2} -> {:.2} um ({:.3}x), duration {:.3}x; {slow} \
+         corner warnings name the duration budget",
+        fig.rms0 * 1e3,
+        fig.rms1 * 1e3,
+        fig.rms1 / fig.rms0,
+        fig.max0 * 1e3,
+        fig.max1 * 1e3,
+        fig.max1 / fig.max0,
+        fig.duration
+    );
+    assert!(fig.duration <= 1.15, "duration {}x", fig.duration);
+
+    let r = app
+        .post_json(
+            PROGRAM,
+            &json!({"gcode": original, "contour": true, "max_duration_ratio": 1.3}),
+        )
+        .await;
+    assert_eq!(r.status(), 200);
+    let body: Value = r.json().await.unwrap();
+    let fig = resimulate(&def, &original, body["gcode"].as_str().unwrap());
+    println!(
+        "2 mm staircase F2000 kv 40, max_duration_ratio 1.3: distance-weighted RMS {:.2} -> {:.2} \
+         um ({:.3}x, gate <= 0.3x), max {:.2} -> {:.2} um ({:.3}x, gate <= 0.5x), duration \
+         {:.3}x (allowed 1.3x)",
+        fig.rms0 * 1e3,
+        fig.rms1 * 1e3,
+        fig.rms1 / fig.rms0,
+        fig.max0 * 1e3,
+        fig.max1 * 1e3,
+        fig.max1 / fig.max0,
+        fig.duration
+    );
+    assert!(
+        fig.rms1 <= 0.3 * fig.rms0,
+        "RMS {} vs {}",
+        fig.rms1,
+        fig.rms0
+    );
+    assert!(
+        fig.max1 <= 0.5 * fig.max0,
+        "max {} vs {}",
+        fig.max1,
+        fig.max0
+    );
+    assert!(fig.duration <= 1.3, "duration {}x", fig.duration);
+
+    for bad in [0.9, 2.5] {
+        let r = app
+            .post_json(
+                PROGRAM,
+                &json!({"gcode": original, "contour": true, "max_duration_ratio": bad}),
+            )
+            .await;
+        assert_eq!(r.status(), 400);
+        let p: Value = r.json().await.unwrap();
+        assert!(
+            p["detail"].as_str().unwrap().contains("max_duration_ratio"),
+            "{p}"
+        );
+    }
+}
+on_both_backends!(contour_precompensation_trades_time_for_close_corners);

@@ -11,7 +11,8 @@
 
 use serde_json::json;
 use truecut::cam::{
-    DEFAULT_TOLERANCE_MM, compensate_program, contour_program, volumetric_and_contour,
+    DEFAULT_MAX_DURATION_RATIO, DEFAULT_TOLERANCE_MM, compensate_program, contour_program,
+    volumetric_and_contour,
 };
 use truecut::motion::{DEFAULT_PERIOD_S, Machine, ReadOptions};
 use truecut::volumetric::{FitOptions, ModelKind, ShapeFamily, SyntheticMachine, fit};
@@ -114,8 +115,14 @@ fn compensated_programs_are_valid_programs() {
             let answer = match mode {
                 "volumetric" => compensate_program(&text, &options, &map, DEFAULT_TOLERANCE_MM)
                     .map(|c| (c, None)),
-                "contour" => contour_program(&text, &options, &machine, DEFAULT_PERIOD_S)
-                    .map(|(c, p)| (c, Some(p))),
+                "contour" => contour_program(
+                    &text,
+                    &options,
+                    &machine,
+                    DEFAULT_PERIOD_S,
+                    DEFAULT_MAX_DURATION_RATIO,
+                )
+                .map(|(c, p)| (c, Some(p))),
                 _ => volumetric_and_contour(
                     &text,
                     &options,
@@ -123,6 +130,7 @@ fn compensated_programs_are_valid_programs() {
                     DEFAULT_TOLERANCE_MM,
                     &machine,
                     DEFAULT_PERIOD_S,
+                    DEFAULT_MAX_DURATION_RATIO,
                 )
                 .map(|(c, p)| (c, Some(p))),
             };

@@ -23,7 +23,7 @@
 //! distance-weighted sum of squared contour errors plus [`MAX_WEIGHT_MM`] times the squared
 //! largest one (at an inside corner, plus [`GOUGE_WEIGHT_MM`] times the squared gouge beyond
 //! 90 % of the limit). A move is kept only when it lowers that, keeps the tool out of the
-//! material and keeps the corner's extra time within its share of [`TIME_BUDGET`] (and the
+//! material and keeps the corner's extra time within its share of the duration budget ([`SEARCH_SHARE`]; and the
 //! whole program within it).
 //!
 //! Material side. At an inside corner (the material outside the turn, as in a pocket) the
@@ -64,9 +64,11 @@ use super::{Error, Eval, MaterialSide, Run, norm, round_to, sub};
 /// outer side of a corner (issue 24: 1 µm); the search keeps a 10 % margin.
 pub const GOUGE_LIMIT_MM: f64 = 1e-3;
 
-/// Share of the original program's duration the corner stage may add, all corners together
-/// (the goal allows 15 %).
-pub const TIME_BUDGET: f64 = 0.12;
+/// Fraction of the duration budget (`max_duration_ratio − 1` of the original program's
+/// duration, [`super::PredistortOptions`]) the corner stage may spend, all corners together:
+/// 0.8 (0.12 of the duration at the default ratio 1.15); the corner-window ILC may take the
+/// rest up to [`super::ilc::ILC_SHARE`].
+pub const SEARCH_SHARE: f64 = 0.8;
 
 /// Arc length (mm) on either side of a corner within which the outward offset counts as a
 /// gouge of that corner.
@@ -483,7 +485,8 @@ pub(super) fn search(
     let (mut pts, mut cur_eval) = eval(&theta)?;
     let mut cur = score(&run.reference, corners, &cur_eval);
     let before = cur.clone();
-    let budget = (TIME_BUDGET * orig_periods as f64 / n.max(1) as f64).floor() as usize;
+    let share = SEARCH_SHARE * run.time_budget;
+    let budget = (share * orig_periods as f64 / n.max(1) as f64).floor() as usize;
     let mut step = vec![STEP0_MM; n];
     let mut dir = vec![0usize; n];
     let mut fails = vec![0usize; n];
@@ -526,7 +529,7 @@ pub(super) fn search(
         simulations += 1;
         let sc = score(&run.reference, corners, &e);
         // Over the whole program's budget: no corner may take longer than it does now.
-        let over = e.periods as f64 > (1.0 + TIME_BUDGET) * orig_periods as f64;
+        let over = e.periods as f64 > (1.0 + share) * orig_periods as f64;
         let mut moved = false;
         for c in 0..n {
             if !active[c] {
@@ -568,7 +571,7 @@ pub(super) fn search(
             simulations += 1;
             // The moves of several corners together may exceed the program's time budget
             // where each alone did not: then they are all taken back.
-            if e.periods as f64 > (1.0 + TIME_BUDGET) * orig_periods as f64 {
+            if e.periods as f64 > (1.0 + share) * orig_periods as f64 {
                 theta = last_theta.clone();
                 step.iter_mut().for_each(|s| *s *= 0.5);
                 refused_time.iter_mut().for_each(|r| *r += 1);

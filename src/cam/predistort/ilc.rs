@@ -29,7 +29,7 @@
 //! error, the squared max, the gouge) falls, it keeps the tool out of the material (at an
 //! inside corner within 0.9 × [`GOUGE_LIMIT_MM`] or its present offset; at an outside corner
 //! no deeper into the turn than when the stage began) and within its share of
-//! [`ILC_TIME_BUDGET`]. The tried corners' steps are then simulated together (a corner's moves
+//! [`ILC_SHARE`] of the duration budget. The tried corners' steps are then simulated together (a corner's moves
 //! reach into its neighbours' windows) and kept when every corner still passes those checks
 //! and the objectives' sum falls (or each corner's own does); corners that fail are dropped
 //! and the rest tried again, twice at most. A kept corner's `λ_c` falls threefold, the others'
@@ -72,9 +72,11 @@ pub(super) const MAX_STEPS: usize = 14;
 /// Levenberg–Marquardt damping of the first step (relative to the diagonal of `JᵀJ`).
 const LAMBDA0: f64 = 1e-2;
 
-/// Share of the original program's duration the corner stage and this stage may add
-/// together (the goal allows 15 %; the corner stage alone keeps within [`super::TIME_BUDGET`]).
-pub(super) const ILC_TIME_BUDGET: f64 = 0.14;
+/// Fraction of the duration budget (`max_duration_ratio − 1`) the corner stage and this
+/// stage may spend together: 14/15 (0.14 of the original's duration at the default ratio
+/// 1.15, leaving a margin for the rounding of the written program; the corner stage alone
+/// keeps within [`super::corners::SEARCH_SHARE`]).
+pub(super) const ILC_SHARE: f64 = 14.0 / 15.0;
 
 /// Weight of the squared gouge excess against the squared error (dimensionless).
 const GOUGE_K: f64 = 1e4;
@@ -272,12 +274,12 @@ pub(super) fn refine(
     }
     let win = windows(&pts, corners, fixed);
     let orig = run.orig_periods as f64;
-    let budget = (ILC_TIME_BUDGET * orig / n as f64).floor() as usize;
+    let tb = ILC_SHARE * run.time_budget;
+    let budget = (tb * orig / n as f64).floor() as usize;
     let mut pts = pts;
     let mut cur = cur;
     let mut score = corners::score(&run.reference, corners, &cur);
     let mut lambda = vec![LAMBDA0; n];
-    let tb = ILC_TIME_BUDGET;
     let start_gouge: Vec<f64> = score.iter().map(|s| s.gouge).collect();
     let all_res = |e: &Eval| -> Vec<Vec<f64>> {
         let tips = tips_of(&e.actual);

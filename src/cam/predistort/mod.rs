@@ -36,11 +36,11 @@
 //! outside the turn; the material side from G41/G42, without them every corner an outside
 //! corner whose outer side is free: [`predistort_sided`]; an inside corner may stop instead,
 //! a G4 dwell at the corner, [`PredistortPoint::dwell_s`]) or past the corner's share of
-//! [`TIME_BUDGET`]; iteration steps that gouge at such a corner, or take the program past the
+//! the duration budget ([`PredistortOptions::max_duration_ratio`]); iteration steps that gouge at such a corner, or take the program past the
 //! budget, are taken back. Then the corner-window ILC (module `ilc`) moves every point near
 //! each such corner (the braking and accelerating stretches with the three split points) by
 //! Levenberg–Marquardt steps on the simulation's Jacobian (norm-optimal ILC on the lifted
-//! system), under the same gouge rule and a 14 % time budget for both stages together, within
+//! system), under the same gouge rule and 14/15 of the duration budget for both stages together, within
 //! a work bound of simulated periods (a note says when it stops there).
 //! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
 //! Where a speed ramp runs on an arc, the whole run is repeated with the ramps' points within
@@ -56,6 +56,7 @@ mod ilc;
 mod limits;
 mod measure;
 mod notes;
+mod options;
 mod reference;
 mod run;
 
@@ -63,9 +64,10 @@ use std::collections::BTreeMap;
 
 use crate::motion::gcode::{Block, Motion};
 use crate::motion::{self, Kinematics, Machine, Program, contour_error, predict_program};
-pub use corners::{GOUGE_LIMIT_MM, TIME_BUDGET};
+pub use corners::{GOUGE_LIMIT_MM, SEARCH_SHARE};
 use limits::{junction_limits, refuse_sharp_junctions, turns_above};
 use notes::{corner_notes, refusal_notes, residual_notes, stop_notes};
+pub use options::{DEFAULT_MAX_DURATION_RATIO, MAX_DURATION_RATIO, PredistortOptions};
 use reference::{Reference, correction, smooth};
 use run::{Eval, Run, ceil_to, norm, round_to, sub};
 
@@ -102,15 +104,6 @@ pub const POSITION_DECIMALS: i32 = 4;
 
 /// Decimals of the returned feeds (mm/min): printed with 3 decimals they reproduce the figures.
 pub const FEED_DECIMALS: i32 = 3;
-
-/// What the pre-distortion may do.
-#[derive(Clone, Debug, PartialEq)]
-pub struct PredistortOptions {
-    /// Interpolation period of the simulation, s (1e-5..0.1).
-    pub period_s: f64,
-    /// Most pre-distortion iterations (each one interpolation and simulation), 0..=100.
-    pub max_iterations: usize,
-}
 
 /// One G01 block of the compensated program.
 #[derive(Clone, Debug, PartialEq)]
@@ -274,18 +267,7 @@ fn predistort_at(
     side: &dyn Fn(usize) -> Option<MaterialSide>,
     chord_tol_mm: f64,
 ) -> Result<Option<Predistorted>, Error> {
-    if !(opts.period_s.is_finite() && (1e-5..=0.1).contains(&opts.period_s)) {
-        return Err(Error::Option {
-            field: "period_s",
-            message: format!("must be within 1e-5..0.1 s, got {}", opts.period_s),
-        });
-    }
-    if opts.max_iterations > 100 {
-        return Err(Error::Option {
-            field: "max_iterations",
-            message: format!("must be within 0..=100, got {}", opts.max_iterations),
-        });
-    }
+    opts.check()?;
     if !matches!(machine.kinematics, Kinematics::Xyz) {
         return Err(Error::Unsupported(
             "contour pre-distortion handles xyz machines only so far; this machine has rotary axes"
@@ -353,6 +335,7 @@ fn predistort_at(
         lines: lines.clone(),
         kept,
         dwell_s: Vec::new(),
+        time_budget: opts.max_duration_ratio - 1.0,
     };
     let init_limits = junction_limits(machine, opts.period_s, start, &pts0);
     let half_mm: Vec<f64> = run
@@ -427,8 +410,10 @@ fn predistort_at(
             iterations += 1;
             e = run.evaluate(&cand)?;
         }
-        // A step may not take the program past its time budget (issue 24: 1.15×).
-        let in_time = e.periods as f64 <= (1.0 + TIME_BUDGET) * run.orig_periods as f64
+        // A step may not take the program past the corner stage's share of the duration
+        // budget (issue 24: 1.15× by default).
+        let in_time = e.periods as f64
+            <= (1.0 + SEARCH_SHARE * run.time_budget) * run.orig_periods as f64
             || e.periods <= cur_eval.periods;
         if e.rms < cur_eval.rms * (1.0 - 1e-9) && e.max <= cur_eval.max * 1.01 + 1e-7 && in_time {
             let gain = (cur_eval.rms - e.rms) / cur_eval.rms;
@@ -533,7 +518,7 @@ fn predistort_at(
     notes.extend(refusal.into_iter().filter(not_corner));
     if let Some(res) = &corner_result {
         notes.extend(stop_notes(&spots, res, &run.dwell_s));
-        notes.extend(corner_notes(&spots, res));
+        notes.extend(corner_notes(&spots, res, opts.max_duration_ratio));
     }
     if let (Some(steps), Some(first)) = (ilc_bound, spots.first()) {
         notes.push(format!(

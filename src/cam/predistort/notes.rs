@@ -6,8 +6,13 @@ use crate::motion::Machine;
 
 /// One sentence per corner of the corner stage whose largest error stayed above 0.5× its
 /// original one or whose distance-weighted RMS stayed above 0.3× (corners with an original
-/// error above 1 µm), naming what held the search back, at most 20.
-pub(super) fn corner_notes(spots: &[CornerSpot], res: &CornerResult) -> Vec<String> {
+/// error above 1 µm), naming what held the search back, at most 20. `max_duration_ratio` is
+/// the run's ([`super::PredistortOptions`]), named where time held a corner back.
+pub(super) fn corner_notes(
+    spots: &[CornerSpot],
+    res: &CornerResult,
+    max_duration_ratio: f64,
+) -> Vec<String> {
     let mut out = Vec::new();
     let mut more = 0;
     for (c, s) in spots.iter().enumerate() {
@@ -28,8 +33,12 @@ pub(super) fn corner_notes(spots: &[CornerSpot], res: &CornerResult) -> Vec<Stri
                 GOUGE_LIMIT_MM * 1e3
             )
         } else if res.refused_time[c] > 0 {
-            "a larger correction would slow the corner beyond its share of the duration budget"
-                .to_string()
+            format!(
+                "a larger correction would slow the corner beyond its share of the duration \
+                 budget (max_duration_ratio {max_duration_ratio}: the program may take up to \
+                 {max_duration_ratio}× the original's time; a larger ratio lets the corners slow \
+                 further where they follow each other closely)"
+            )
         } else {
             format!(
                 "the interpolator turns the command within max_accel per period, so at the \

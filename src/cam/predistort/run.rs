@@ -147,6 +147,9 @@ pub(super) struct Run<'a> {
     pub kept: BTreeMap<usize, Vec<Block>>,
     /// Dwell at each point, s (the corner stage's stops at inside corners; empty: none).
     pub dwell_s: Vec<f64>,
+    /// Duration the compensated program may add, as a fraction of the original's
+    /// (`max_duration_ratio − 1`, [`super::PredistortOptions`]).
+    pub time_budget: f64,
 }
 
 impl Run<'_> {

@@ -21,6 +21,7 @@ fn opts() -> PredistortOptions {
     PredistortOptions {
         period_s: 1e-3,
         max_iterations: 30,
+        max_duration_ratio: DEFAULT_MAX_DURATION_RATIO,
     }
 }
 
@@ -202,6 +203,7 @@ fn options_rotary_machines_and_dwells_are_refused() {
     let bad = PredistortOptions {
         period_s: 0.0,
         max_iterations: 3,
+        max_duration_ratio: DEFAULT_MAX_DURATION_RATIO,
     };
     assert!(matches!(
         predistort(&m, &prog, &bad),
@@ -213,6 +215,7 @@ fn options_rotary_machines_and_dwells_are_refused() {
     let bad = PredistortOptions {
         period_s: 1e-3,
         max_iterations: 1000,
+        max_duration_ratio: DEFAULT_MAX_DURATION_RATIO,
     };
     assert!(matches!(
         predistort(&m, &prog, &bad),
@@ -221,6 +224,19 @@ fn options_rotary_machines_and_dwells_are_refused() {
             ..
         })
     ));
+    for ratio in [0.99, 2.5, f64::NAN] {
+        let bad = PredistortOptions {
+            max_duration_ratio: ratio,
+            ..opts()
+        };
+        assert!(matches!(
+            predistort(&m, &prog, &bad),
+            Err(Error::Option {
+                field: "max_duration_ratio",
+                ..
+            })
+        ));
+    }
     let dwell = gcode::parse("G0 X1\nG4 P0.5\nG1 X2 F100\n").unwrap();
     let e = predistort(&m, &dwell, &opts()).unwrap_err();
     assert!(e.to_string().contains("line 2"), "{e}");

@@ -98,11 +98,25 @@ fn check_corner_goals(
     side: Option<MaterialSide>,
     expect: Expect,
 ) -> Predistorted {
+    check_corner_goals_within(name, kv, text, side, expect, DEFAULT_MAX_DURATION_RATIO)
+}
+
+/// [`check_corner_goals`] with the duration allowed up to `ratio` × the original's (the
+/// request's `max_duration_ratio`; the duration gate becomes `ratio`).
+fn check_corner_goals_within(
+    name: &str,
+    kv: f64,
+    text: &str,
+    side: Option<MaterialSide>,
+    expect: Expect,
+    ratio: f64,
+) -> Predistorted {
     let m = machine_kv(kv);
     let prog = gcode::parse(text).unwrap();
     let opts = PredistortOptions {
         period_s: 1e-3,
         max_iterations: 30,
+        max_duration_ratio: ratio,
     };
     let t0 = std::time::Instant::now();
     let out = predistort_sided(&m, &prog, &opts, &|_| false, &|_| side).unwrap();
@@ -111,7 +125,7 @@ fn check_corner_goals(
     println!(
         "{name} (kv {kv}): distance-weighted RMS {:.2} → {:.2} µm ({:.3}×, goal ≤ 0.1×, gate ≤ 0.3×); \
          max {:.2} → {:.2} µm ({:.3}×, gate ≤ 0.5×); per-period RMS {:.2} → {:.2} µm; \
-         duration {:.3} → {:.3} s ({:.3}×, gate ≤ 1.15×); gouge {:.2} → {:.2} µm (gate ≤ 1 µm); \
+         duration {:.3} → {:.3} s ({:.3}×, gate ≤ {ratio}×); gouge {:.2} → {:.2} µm (gate ≤ 1 µm); \
          {} points, {} simulations, {wall:.2} s",
         o.rms_distance_mm * 1e3,
         c.rms_distance_mm * 1e3,
@@ -133,11 +147,11 @@ fn check_corner_goals(
     let gates = [
         c.rms_distance_mm <= 0.3 * o.rms_distance_mm,
         c.max_mm <= 0.5 * o.max_mm,
-        c.duration_s <= 1.15 * o.duration_s,
+        c.duration_s <= ratio * o.duration_s,
         c.gouge_mm <= GOUGE_LIMIT_MM.max(o.gouge_mm),
     ];
     println!(
-        "  gates: RMS ≤ 0.3× {}, max ≤ 0.5× {}, duration ≤ 1.15× {}, no gouge on the material \
+        "  gates: RMS ≤ 0.3× {}, max ≤ 0.5× {}, duration ≤ {ratio}× {}, no gouge on the material \
          side (≤ 1 µm, or the original's where it cuts the turn) {}",
         met(gates[0]),
         met(gates[1]),
@@ -233,7 +247,7 @@ fn check_corner_goals(
         o.max_mm
     );
     assert!(
-        c.duration_s <= 1.15 * o.duration_s,
+        c.duration_s <= ratio * o.duration_s,
         "{name}: duration {} vs {}",
         c.duration_s,
         o.duration_s
@@ -282,13 +296,24 @@ fn short_segments_improve() {
     let why = "ten corners 2 mm apart, each slowed to its junction speed: the corner stage \
         and the corner-window ILC spend the time budget (1.13×) on the way to 0.66×; each \
         braking stretch is a single G01 block (every block ramps from zero acceleration, so \
-        more points there would lengthen the braking further)";
+        more points there would lengthen the braking further); with more time allowed \
+        (max_duration_ratio 1.3) the gates are met, case below";
     let miss = Expect::Miss {
         rms: 0.76,
         max: 0.85,
         why,
     };
     check_corner_goals("2 mm staircase F2000", 40.0, &staircase(2000.0), None, miss);
+    // The same program with more time allowed (the request's max_duration_ratio 1.3): the
+    // corners slow further and the error gates are met.
+    check_corner_goals_within(
+        "2 mm staircase F2000, max_duration_ratio 1.3",
+        40.0,
+        &staircase(2000.0),
+        None,
+        Expect::Gates,
+        1.3,
+    );
 }
 
 /// Arcs meeting lines at 90° corners.
