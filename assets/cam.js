@@ -134,6 +134,7 @@
     con.checked = true;
     const g54 = h("input", { type: "text", value: DEMO_OFFSET, size: "18", "aria-label": "G54 work offset" });
     const period = h("input", { type: "number", value: "0.001", step: "0.0005", min: "0.0001" });
+    const ratio = h("input", { type: "number", value: "1.15", step: "0.05", min: "1", max: "2", "aria-label": "longest duration, times the original's" });
     const button = h("button", {}, "Compensate");
     main.append(h("form", { class: "inputs" },
       h("div", {}, h("label", {}, "G-code program (work coordinates, mm or inch)"), code, file),
@@ -141,7 +142,9 @@
         h("p", {}, vol, h("label", { for: "cam-volumetric", class: "inline" }, " Volumetric pre-compensation"), volNote),
         h("p", {}, con, h("label", { for: "cam-contour", class: "inline" }, " Contour pre-distortion (servo model)")),
         h("label", {}, "G54 work offset: x, y, z (mm, machine coordinates)"), g54,
-        h("label", {}, "Interpolation period (s)"), period, h("p", {}, button))));
+        h("label", {}, "Interpolation period (s)"), period,
+        h("label", {}, "With contour: longest duration (× the original's; more lets close corners slow further)"), ratio,
+        h("p", {}, button))));
     const out = h("div");
     main.append(out);
     let hasMap = null; // learnt from the first answer (volumetric left to the service)
@@ -153,6 +156,7 @@
       const common = { period_s };
       if (work_offsets) common.work_offsets = work_offsets;
       const body = Object.assign({ gcode: code.value, contour: con.checked }, common);
+      if (con.checked) body.max_duration_ratio = Number(ratio.value);
       if (hasMap !== null) body.volumetric = vol.checked;
       const c = await api("POST", `/v1/machines/${enc(m)}/compensated-program`, body);
       if (hasMap === null) {
