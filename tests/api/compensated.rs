@@ -611,6 +611,31 @@ struct Resimulated {
     tips1: Vec<[f64; 3]>,
 }
 
+impl Resimulated {
+    /// The figures in one sentence, µm and ratios.
+    fn summary(&self) -> String {
+        format!(
+            "distance-weighted RMS {:.2} -> {:.2} um ({:.3}x, gate <= 0.3x), max {:.2} -> {:.2} um \
+             ({:.3}x, gate <= 0.5x), duration {:.3}x",
+            self.rms0 * 1e3,
+            self.rms1 * 1e3,
+            self.rms1 / self.rms0,
+            self.max0 * 1e3,
+            self.max1 * 1e3,
+            self.max1 / self.max0,
+            self.duration
+        )
+    }
+
+    /// Issue 24's gates: distance-weighted RMS <= 0.3x the original's, max <= 0.5x, duration
+    /// <= `ratio` x (1.15 by default, or the request's max_duration_ratio).
+    fn assert_gates(&self, ratio: f64) {
+        assert!(self.rms1 <= 0.3 * self.rms0, "{}", self.summary());
+        assert!(self.max1 <= 0.5 * self.max0, "{}", self.summary());
+        assert!(self.duration <= ratio, "{}", self.summary());
+    }
+}
+
 fn resimulate(def: &Value, original: &str, answer: &str) -> Resimulated {
     use truecut::motion::{
         DEFAULT_PERIOD_S, Machine, contour_error, interpolate, simulate_machine,
@@ -688,34 +713,18 @@ async fn contour_precompensation_at_corners(app: TestApp) {
     let text = body["gcode"].as_str().unwrap();
     let warnings = warnings_of(&body);
 
-    let Resimulated {
-        rms0,
-        max0,
-        rms1,
-        max1,
-        duration,
-        ..
-    } = resimulate(&def, original, text);
+    let fig = resimulate(&def, original, text);
     println!(
-        "contour pre-compensation at corners, circle + 140° + 90° F2000 kv 40: distance-weighted \
-         RMS {:.2} -> {:.2} um ({:.3}x, gate <= 0.3x, goal 0.1x); max {:.2} -> {:.2} um ({:.3}x, \
-         gate <= 0.5x); duration {:.3}x (gate <= 1.15x); route says RMS {:.2} -> {:.2} um per period",
-        rms0 * 1e3,
-        rms1 * 1e3,
-        rms1 / rms0,
-        max0 * 1e3,
-        max1 * 1e3,
-        max1 / max0,
-        duration,
+        "contour pre-compensation at corners, circle + 140° + 90° F2000 kv 40: {} (gate <= \
+         1.15x; RMS goal 0.1x); route says RMS {:.2} -> {:.2} um per period",
+        fig.summary(),
         body["contour"]["original_rms_mm"].as_f64().unwrap() * 1e3,
         body["contour"]["compensated_rms_mm"].as_f64().unwrap() * 1e3,
     );
     for w in &warnings {
         println!("  warning: {w}");
     }
-    assert!(rms1 <= 0.3 * rms0, "distance-weighted RMS {rms1} vs {rms0}");
-    assert!(max1 <= 0.5 * max0, "max {max1} vs {max0}");
-    assert!(duration <= 1.15, "duration {duration}x");
+    fig.assert_gates(1.15);
     // Feeds: F2000 everywhere except the last block into each of the two corners, which
     // keeps the original's own speed there (at least the 90° junction limit, 5 mm/s).
     let mut slow = 0;
@@ -757,33 +766,13 @@ async fn contour_precompensation_stops_at_inside_corners(app: TestApp) {
     let warnings = warnings_of(&body);
     let fig = resimulate(&def, original, text);
     println!(
-        "contour pre-compensation at inside corners, 10 mm pocket G41 F2000 kv 40: \
-         distance-weighted RMS {:.2} -> {:.2} um ({:.3}x, gate <= 0.3x); max {:.2} -> {:.2} um \
-         ({:.3}x, gate <= 0.5x); duration {:.3}x (gate <= 1.15x)",
-        fig.rms0 * 1e3,
-        fig.rms1 * 1e3,
-        fig.rms1 / fig.rms0,
-        fig.max0 * 1e3,
-        fig.max1 * 1e3,
-        fig.max1 / fig.max0,
-        fig.duration
+        "contour pre-compensation at inside corners, 10 mm pocket G41 F2000 kv 40: {} (gate <= 1.15x)",
+        fig.summary()
     );
     for w in &warnings {
         println!("  warning: {w}");
     }
-    assert!(
-        fig.rms1 <= 0.3 * fig.rms0,
-        "RMS {} vs {}",
-        fig.rms1,
-        fig.rms0
-    );
-    assert!(
-        fig.max1 <= 0.5 * fig.max0,
-        "max {} vs {}",
-        fig.max1,
-        fig.max0
-    );
-    assert!(fig.duration <= 1.15, "duration {}x", fig.duration);
+    fig.assert_gates(1.15);
     // Into the material: beyond the walls x = 0, x = 10, y = 0, y = 10.
     let gouge = fig
         .tips1
@@ -848,16 +837,9 @@ async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
     assert!(slow >= 1, "{:?}", warnings_of(&default));
     let fig = resimulate(&def, &original, default["gcode"].as_str().unwrap());
     println!(
-        "2 mm staircase F2000 kv 40, max_duration_ratio 1.15 (default): distance-weighted RMS \
-         {:.2} -> {:.2} um ({:.3}x), max {:.2} -> {:.2} um ({:.3}x), duration {:.3}x; {slow} \
-         corner warnings name the duration budget",
-        fig.rms0 * 1e3,
-        fig.rms1 * 1e3,
-        fig.rms1 / fig.rms0,
-        fig.max0 * 1e3,
-        fig.max1 * 1e3,
-        fig.max1 / fig.max0,
-        fig.duration
+        "2 mm staircase F2000 kv 40, max_duration_ratio 1.15 (default): {} (gates not met); \
+         {slow} corner warnings name the duration budget",
+        fig.summary()
     );
     assert!(fig.duration <= 1.15, "duration {}x", fig.duration);
 
@@ -871,30 +853,10 @@ async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
     let body: Value = r.json().await.unwrap();
     let fig = resimulate(&def, &original, body["gcode"].as_str().unwrap());
     println!(
-        "2 mm staircase F2000 kv 40, max_duration_ratio 1.3: distance-weighted RMS {:.2} -> {:.2} \
-         um ({:.3}x, gate <= 0.3x), max {:.2} -> {:.2} um ({:.3}x, gate <= 0.5x), duration \
-         {:.3}x (allowed 1.3x)",
-        fig.rms0 * 1e3,
-        fig.rms1 * 1e3,
-        fig.rms1 / fig.rms0,
-        fig.max0 * 1e3,
-        fig.max1 * 1e3,
-        fig.max1 / fig.max0,
-        fig.duration
+        "2 mm staircase F2000 kv 40, max_duration_ratio 1.3: {} (allowed 1.3x)",
+        fig.summary()
     );
-    assert!(
-        fig.rms1 <= 0.3 * fig.rms0,
-        "RMS {} vs {}",
-        fig.rms1,
-        fig.rms0
-    );
-    assert!(
-        fig.max1 <= 0.5 * fig.max0,
-        "max {} vs {}",
-        fig.max1,
-        fig.max0
-    );
-    assert!(fig.duration <= 1.3, "duration {}x", fig.duration);
+    fig.assert_gates(1.3);
 
     for bad in [0.9, 2.5] {
         let r = app
