@@ -456,6 +456,10 @@ impl JobPool {
             if let Some(p) = self.lock_live().get(id) {
                 p.cancel();
             }
+            // After the worker was told: dropping a large input is the slower write.
+            if let Err(e) = self.inner.store.drop_job_input(id).await {
+                tracing::warn!(job = %id, "cannot drop the cancelled job's input (pruning will): {e:#}");
+            }
         }
         let Some(status) = self.status(id).await? else {
             return Ok(Cancel::Unknown);

@@ -14,7 +14,11 @@
 //! acceleration/jerk budget goes to the tangential ramp, half to path curvature on curved
 //! blocks), and a look-ahead over the whole program (backward and forward passes) so speed
 //! carries through tangent junctions and drops at corners to the speed whose direction
-//! change per period stays within `max_accel·period` on every axis.
+//! change per period stays within `max_accel·period` on every axis. The direction change is
+//! taken over the path the tool covers in one period around the junction, so a chain of
+//! blocks shorter than that (a CAM post's chords of a small radius) counts all its turns
+//! within the period: the speed through it is about `√(max_accel·R)`, the centripetal limit
+//! of the radius `R` the chords approximate (`windowed_turn`).
 //!
 //! Hand-written: no crate implements Zhang & Chen 2025's RTCP feed distribution, and the S-curve
 //! planner must see the machine axes through the inverse kinematics.
@@ -72,6 +76,8 @@ pub const DEFAULT_PERIOD_S: f64 = 1e-3;
 
 struct Seg {
     len: f64,
+    /// A straight machine-axis move (its direction is `d_in` = `d_out` all along).
+    straight: bool,
     vcap: f64,
     acc: f64,
     jerk: f64,
@@ -164,12 +170,44 @@ fn segment(kin: &Kinematics, m: &Machine, b: &Block, n_axes: usize) -> Seg {
     }
     Seg {
         len,
+        straight,
         vcap,
         acc,
         jerk,
         d_in,
         d_out,
     }
+}
+
+/// Per-axis direction change (machine-axis units per mm of path, as `d_in`/`d_out`) across
+/// junction `k` of `items` over the path within `half` mm on either side of it: the
+/// direction `half` mm before against the direction `half` mm after, walking over straight
+/// blocks shorter than the remaining distance. The walk stops at an arc (its own curvature
+/// is capped in [`segment`]; its tangent at the end nearest the junction is taken), at a
+/// dwell and at the ends of the program. With blocks longer than `half` on both sides this
+/// is the change at the junction itself.
+fn windowed_turn(items: &[(&Block, Option<Seg>)], k: usize, half: f64) -> [f64; 5] {
+    let mut before = [0.0; 5];
+    let (mut j, mut rem) = (k - 1, half);
+    while let Some(s) = &items[j].1 {
+        before = s.d_out;
+        if s.len >= rem || !s.straight || j == 0 {
+            break;
+        }
+        rem -= s.len;
+        j -= 1;
+    }
+    let mut after = [0.0; 5];
+    let (mut j, mut rem) = (k, half);
+    while let Some(s) = items.get(j).and_then(|it| it.1.as_ref()) {
+        after = s.d_in;
+        if s.len >= rem || !s.straight {
+            break;
+        }
+        rem -= s.len;
+        j += 1;
+    }
+    std::array::from_fn(|i| (after[i] - before[i]).abs())
 }
 
 /// Interpolates `program` on `machine` every `period_s` seconds (machine at rest at the start
@@ -255,12 +293,33 @@ pub fn interpolate(
         let (Some(a), Some(b)) = (&items[k - 1].1, &items[k].1) else {
             continue;
         };
-        let mut vj = a.vcap.min(b.vcap);
-        for (i, ax) in machine.axes.iter().enumerate().take(n_axes) {
-            let dd = (b.d_in[i] - a.d_out[i]).abs();
-            if dd > 1e-12 {
-                vj = vj.min(ax.limits.max_accel * period_s / dd);
+        // Largest speed v with v ≤ max_accel·period / (turn over the path of one period at
+        // v), per axis: that turn grows with v, so the bound falls as v rises (bisection).
+        let cap = |v: f64| -> f64 {
+            let dd = windowed_turn(&items, k, 0.5 * v * period_s);
+            let mut c = f64::INFINITY;
+            for (i, ax) in machine.axes.iter().enumerate().take(n_axes) {
+                if dd[i] > 1e-12 {
+                    c = c.min(ax.limits.max_accel * period_s / dd[i]);
+                }
             }
+            c
+        };
+        let mut vj = a.vcap.min(b.vcap).min(cap(0.0));
+        if cap(vj) < vj {
+            let (mut lo, mut hi) = (cap(vj), vj);
+            for _ in 0..40 {
+                let mid = 0.5 * (lo + hi);
+                if cap(mid) >= mid {
+                    lo = mid;
+                } else {
+                    hi = mid;
+                }
+                if hi - lo <= 1e-9 * hi {
+                    break;
+                }
+            }
+            vj = lo;
         }
         v[k] = vj;
     }

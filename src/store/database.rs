@@ -55,7 +55,7 @@ pub(crate) fn now_ms() -> i64 {
 }
 
 fn migrator(backend: Backend) -> Migrator {
-    let scripts: [(i64, &'static str, &'static str); 4] = match backend {
+    let scripts: [(i64, &'static str, &'static str); 5] = match backend {
         Backend::Sqlite => [
             (
                 1,
@@ -76,6 +76,11 @@ fn migrator(backend: Backend) -> Migrator {
                 4,
                 "iso230_runs",
                 include_str!("../../migrations/sqlite/0004_iso230_runs.sql"),
+            ),
+            (
+                5,
+                "job_inputs",
+                include_str!("../../migrations/sqlite/0005_job_inputs.sql"),
             ),
         ],
         Backend::Postgres => [
@@ -98,6 +103,11 @@ fn migrator(backend: Backend) -> Migrator {
                 4,
                 "iso230_runs",
                 include_str!("../../migrations/postgres/0004_iso230_runs.sql"),
+            ),
+            (
+                5,
+                "job_inputs",
+                include_str!("../../migrations/postgres/0005_job_inputs.sql"),
             ),
         ],
     };

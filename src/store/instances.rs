@@ -23,6 +23,7 @@ use serde::Serialize;
 use sqlx::AssertSqlSafe;
 
 use super::database::Store;
+use super::jobs::HAS_INPUT;
 
 /// What this process knows of its own lease (shared by every clone of its [`Store`]).
 #[derive(Debug, Default)]
@@ -266,7 +267,7 @@ impl Store {
         let mut tx = self.db.begin().await?;
         let requeued = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
-             updated_at = $1 WHERE state IN {OWNED} AND input IS NOT NULL AND attempts < $2 \
+             updated_at = $1 WHERE state IN {OWNED} AND {HAS_INPUT} AND attempts < $2 \
              AND owner NOT IN {live}"
         )))
         .bind(super::database::now_ms())
@@ -278,7 +279,7 @@ impl Store {
         let failed = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = 'failed', error = $1, updated_at = $2, finished_at = $3 \
              WHERE owner <> '' AND owner NOT IN {live} \
-             AND (state IN {OWNED} OR (state = 'queued' AND input IS NULL))"
+             AND (state IN {OWNED} OR (state = 'queued' AND NOT {HAS_INPUT}))"
         )))
         .bind(reason.to_string())
         .bind(stamp)
@@ -307,7 +308,7 @@ impl Store {
         let mut tx = self.db.begin().await?;
         let requeued = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
-             updated_at = $1 WHERE state IN {OWNED} AND input IS NOT NULL AND attempts < $2 \
+             updated_at = $1 WHERE state IN {OWNED} AND {HAS_INPUT} AND attempts < $2 \
              AND owner = $3"
         )))
         .bind(super::database::now_ms())

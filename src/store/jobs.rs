@@ -18,7 +18,11 @@
 //! instance's lease holds (`instances.rs`). So a worker whose job was taken away, or whose
 //! instance lapsed, can no longer store anything.
 //!
-//! Bounded storage (issue 25): a job's input is dropped (`NULL`) as soon as it ends, and
+//! Stored input lives in its own table, `job_inputs` (one row per job that has one): kept in
+//! `jobs`, it was rewritten with the row by every progress report on SQLite, which rewrites a
+//! whole record on UPDATE (migrations/*/0005).
+//!
+//! Bounded storage (issue 25): a job's input is dropped as soon as it ends, and
 //! [`Store::prune_jobs`] deletes the jobs that ended longer ago than the retention, so the
 //! table holds the unfinished jobs' inputs and the retained jobs' results, nothing more.
 
@@ -98,6 +102,9 @@ pub enum CancelOutcome {
 /// The job states that count as unfinished (a worker may still be on them).
 const UNFINISHED: &str = "('queued', 'running', 'storing')";
 
+/// The condition "the job has stored input" on a row of `jobs`.
+pub(super) const HAS_INPUT: &str = "id IN (SELECT id FROM job_inputs)";
+
 const COLUMNS: &str = "id, kind, state, progress, result, error, created_at, updated_at, \
                        started_at, finished_at, owner, attempts";
 
@@ -128,19 +135,28 @@ impl Store {
     pub async fn insert_job(&self, id: &str, kind: &str, input: Option<&str>) -> Result<()> {
         let now = now_ms();
         let owner = if input.is_some() { "" } else { self.instance() };
+        let mut tx = self.db.begin().await.context("cannot record the job")?;
         sqlx::query(
-            "INSERT INTO jobs (id, kind, state, progress, owner, created_at, updated_at, input) \
-             VALUES ($1, $2, 'queued', 0.0, $3, $4, $5, $6)",
+            "INSERT INTO jobs (id, kind, state, progress, owner, created_at, updated_at) \
+             VALUES ($1, $2, 'queued', 0.0, $3, $4, $5)",
         )
         .bind(id.to_string())
         .bind(kind.to_string())
         .bind(owner.to_string())
         .bind(now)
         .bind(now)
-        .bind(input.map(str::to_string))
-        .execute(&self.db)
+        .execute(&mut *tx)
         .await
         .context("cannot record the job")?;
+        if let Some(input) = input {
+            sqlx::query("INSERT INTO job_inputs (id, input) VALUES ($1, $2)")
+                .bind(id.to_string())
+                .bind(input.to_string())
+                .execute(&mut *tx)
+                .await
+                .context("cannot store the job's input")?;
+        }
+        tx.commit().await.context("cannot record the job")?;
         Ok(())
     }
 
@@ -199,8 +215,8 @@ impl Store {
             "UPDATE jobs SET state = 'running', owner = $1, started_at = $2, updated_at = $3, \
              attempts = attempts + 1 \
              WHERE state = 'queued' AND id = (SELECT id FROM jobs WHERE state = 'queued' \
-             AND input IS NOT NULL AND kind IN ({}) ORDER BY created_at, id LIMIT 1{lock}) \
-             RETURNING id, kind, input, attempts",
+             AND {HAS_INPUT} AND kind IN ({}) ORDER BY created_at, id LIMIT 1{lock}) \
+             RETURNING id, kind, attempts",
             marks.join(", ")
         );
         let now = now_ms();
@@ -211,26 +227,36 @@ impl Store {
         for k in kinds {
             q = q.bind(k.clone());
         }
-        let row = q
+        let Some(row) = q
             .fetch_optional(&self.db)
             .await
-            .context("cannot claim a job")?;
-        row.map(|r| -> Result<ClaimedJob> {
-            Ok(ClaimedJob {
-                id: r.try_get(0)?,
-                kind: r.try_get(1)?,
-                input: r.try_get(2)?,
-                attempts: r.try_get(3)?,
-            })
-        })
-        .transpose()
+            .context("cannot claim a job")?
+        else {
+            return Ok(None);
+        };
+        let id: String = row.try_get(0)?;
+        let (kind, attempts) = (row.try_get(1)?, row.try_get(2)?);
+        let input: Option<String> =
+            sqlx::query_scalar("SELECT input FROM job_inputs WHERE id = $1")
+                .bind(id.clone())
+                .fetch_optional(&self.db)
+                .await
+                .context("cannot read the claimed job's input")?;
+        // No input: the job was cancelled between the claim and this read (its input goes
+        // when it ends), so there is nothing to run.
+        Ok(input.map(|input| ClaimedJob {
+            id,
+            kind,
+            input,
+            attempts,
+        }))
     }
 
     /// Queued jobs with stored input (waiting for any instance's worker).
     pub async fn count_queued_jobs(&self) -> Result<u64> {
-        let n: i64 = sqlx::query_scalar(
-            "SELECT COUNT(*) FROM jobs WHERE state = 'queued' AND input IS NOT NULL",
-        )
+        let n: i64 = sqlx::query_scalar(AssertSqlSafe(format!(
+            "SELECT COUNT(*) FROM jobs WHERE state = 'queued' AND {HAS_INPUT}"
+        )))
         .fetch_one(&self.db)
         .await?;
         Ok(u64::try_from(n).unwrap_or(0))
@@ -297,7 +323,7 @@ impl Store {
         let fence = super::instances::lease_held_sql(self.backend(), "$8");
         let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = $1, progress = $2, result = $3, error = $4, updated_at = $5, \
-             finished_at = $6, input = NULL WHERE id = $7 AND owner = $8 AND attempts = $9 \
+             finished_at = $6 WHERE id = $7 AND owner = $8 AND attempts = $9 \
              AND state IN {UNFINISHED} AND {fence}"
         )))
         .bind(state.to_string())
@@ -313,6 +339,9 @@ impl Store {
         .await
         .context("cannot update the job")?
         .rows_affected();
+        if n == 1 {
+            self.drop_job_input(id).await?;
+        }
         Ok(n == 1)
     }
 
@@ -321,11 +350,11 @@ impl Store {
     /// outcome. False when it is not this instance's to give back (cancelled, taken back,
     /// in-process: no stored input). The claim still counts in `attempts`.
     pub async fn requeue_job(&self, id: &str, epoch: i64) -> Result<bool> {
-        let n = sqlx::query(
+        let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
              updated_at = $1 WHERE id = $2 AND owner = $3 AND attempts = $4 \
-             AND state IN ('running', 'storing') AND input IS NOT NULL",
-        )
+             AND state IN ('running', 'storing') AND {HAS_INPUT}"
+        )))
         .bind(now_ms())
         .bind(id.to_string())
         .bind(self.instance().to_string())
@@ -350,7 +379,7 @@ impl Store {
         };
         let sql = format!(
             "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
-             updated_at = $1 WHERE owner = $2 AND state = 'running' AND input IS NOT NULL{not_in}"
+             updated_at = $1 WHERE owner = $2 AND state = 'running' AND {HAS_INPUT}{not_in}"
         );
         let mut q = sqlx::query(AssertSqlSafe(sql))
             .bind(now_ms())
@@ -367,12 +396,13 @@ impl Store {
     }
 
     /// Cancels a queued or running job (any instance's): it ends `cancelled` at once and its
-    /// worker, when it looks, stores nothing.
+    /// worker, when it looks, stores nothing. The caller then drops its input
+    /// ([`Store::drop_job_input`]; [`Store::prune_jobs`] drops any an interruption left).
     pub async fn cancel_job(&self, id: &str) -> Result<CancelOutcome> {
         let now = now_ms();
         let n = sqlx::query(
             "UPDATE jobs SET state = 'cancelled', error = 'cancelled by a client', \
-             updated_at = $1, finished_at = $2, input = NULL \
+             updated_at = $1, finished_at = $2 \
              WHERE id = $3 AND state IN ('queued', 'running')",
         )
         .bind(now)
@@ -389,6 +419,17 @@ impl Store {
             Some(rec) => CancelOutcome::Ended(rec.state),
             None => CancelOutcome::Unknown,
         })
+    }
+
+    /// Drops the stored input of job `id` (no-op when it has none): called once the job
+    /// ended, by [`Store::finish_job`] and after [`Store::cancel_job`].
+    pub async fn drop_job_input(&self, id: &str) -> Result<()> {
+        sqlx::query("DELETE FROM job_inputs WHERE id = $1")
+            .bind(id.to_string())
+            .execute(&self.db)
+            .await
+            .context("cannot drop the job's input")?;
+        Ok(())
     }
 
     /// The job's stored state only (cheap; the pool polls it to see remote cancellations).
@@ -495,8 +536,8 @@ impl Store {
         .context("cannot delete old jobs")?
         .rows_affected();
         sqlx::query(
-            "UPDATE jobs SET input = NULL \
-             WHERE state IN ('done', 'failed', 'cancelled') AND input IS NOT NULL",
+            "DELETE FROM job_inputs WHERE id IN \
+             (SELECT id FROM jobs WHERE state IN ('done', 'failed', 'cancelled'))",
         )
         .execute(&self.db)
         .await
@@ -522,7 +563,8 @@ impl Store {
     /// How many jobs the table holds and the bytes of their stored inputs and results.
     pub async fn job_bytes(&self) -> Result<JobBytes> {
         let row = sqlx::query(
-            "SELECT COUNT(*), CAST(COALESCE(SUM(LENGTH(input)), 0) AS BIGINT), \
+            "SELECT COUNT(*), \
+             CAST(COALESCE((SELECT SUM(LENGTH(input)) FROM job_inputs), 0) AS BIGINT), \
              CAST(COALESCE(SUM(LENGTH(result)), 0) AS BIGINT) FROM jobs",
         )
         .fetch_one(&self.db)

@@ -303,7 +303,7 @@ impl ModelStore {
                 let fence = super::instances::lease_held_sql(self.backend, "$5");
                 let n = sqlx::query(sqlx::AssertSqlSafe(format!(
                     "UPDATE jobs SET state = 'done', progress = 1.0, result = $1, error = NULL, \
-                     input = NULL, updated_at = $2, finished_at = $3 \
+                     updated_at = $2, finished_at = $3 \
                      WHERE id = $4 AND owner = $5 AND state = 'storing' AND attempts = $6 \
                      AND {fence}"
                 )))
@@ -323,6 +323,10 @@ impl ModelStore {
                         j.id
                     );
                 }
+                sqlx::query("DELETE FROM job_inputs WHERE id = $1")
+                    .bind(j.id.to_string())
+                    .execute(&mut *tx)
+                    .await?;
             }
             let pruned = self.prune(&mut tx, machine, &surface_key, kind).await?;
             crash_point("model-commit");

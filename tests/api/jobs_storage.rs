@@ -332,3 +332,60 @@ async fn old_jobs_are_pruned(app: TestApp) {
 }
 on_both_backends!(old_jobs_are_pruned, |c| c.job_retention =
     std::time::Duration::from_secs(1));
+
+/// A running job's progress report (every 250 ms) writes a few bytes, not its input. With the
+/// input a column of `jobs`, SQLite rewrote the whole record on each report: a 5 MB input put
+/// 10 MB into the write-ahead log four times a second, per running job. SQLite (the default;
+/// PostgreSQL keeps large values out of line and never rewrote them).
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn progress_reports_do_not_rewrite_the_input() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = truecut::store::Store::open(dir.path(), None).await.unwrap();
+    store.register_instance(60_000).await.unwrap();
+    let input = format!(
+        "{{\"signal\": [{}]}}",
+        vec!["0.1234567890"; 450_000].join(", ")
+    );
+    store
+        .insert_job("big", "stored", Some(&input))
+        .await
+        .unwrap();
+    let claimed = store.claim_job(&["stored".into()]).await.unwrap().unwrap();
+    assert_eq!(claimed.input, input);
+    assert_eq!(
+        store.job_bytes().await.unwrap().input_bytes,
+        input.len() as u64
+    );
+    // The log emptied first: it keeps its largest size, so growth shows only from empty.
+    sqlx::raw_sql("PRAGMA wal_checkpoint(TRUNCATE)")
+        .execute(store.pool())
+        .await
+        .unwrap();
+    let wal = dir.path().join("truecut.db-wal");
+    let wal_len = || std::fs::metadata(&wal).map_or(0, |m| m.len());
+    let before = wal_len();
+    assert_eq!(before, 0, "the write-ahead log was not emptied");
+    for k in 0..10 {
+        let p = f64::from(k) / 10.0;
+        assert!(
+            store
+                .report_job_progress("big", claimed.attempts, p)
+                .await
+                .unwrap()
+        );
+    }
+    let grown = wal_len().saturating_sub(before);
+    println!(
+        "ten progress reports of a job with {:.1} MB of input grew the WAL by {grown} bytes",
+        input.len() as f64 / 1e6
+    );
+    assert!(grown < 256 * 1024, "the WAL grew by {grown} bytes");
+    let done = json!({"ok": true});
+    assert!(
+        store
+            .finish_job("big", claimed.attempts, "done", 1.0, Some(&done), None)
+            .await
+            .unwrap()
+    );
+    assert_eq!(store.job_bytes().await.unwrap().input_bytes, 0);
+}

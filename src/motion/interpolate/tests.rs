@@ -167,3 +167,41 @@ proptest::proptest! {
         }
     }
 }
+
+/// A CAM post's chords of a small radius: a circle R 0.5 mm as 0.01 mm chords (a 1.15° turn
+/// at each junction) at F 6000. Each junction alone would allow 250 mm/s; with eight of
+/// them inside one period their velocity steps add up. The direction change is taken over
+/// the path of one period, so the circle runs at about √(max_accel·R) = 50 mm/s and the
+/// commanded acceleration stays at the axis limit (before: 100 mm/s, 20,000 mm/s², 4×).
+#[test]
+fn short_chords_of_a_small_radius_keep_the_acceleration_limit() {
+    let m = xyz(json!({"max_vel": 500.0, "max_accel": 5000.0, "max_jerk": 100_000.0}));
+    let (r, n) = (0.5f64, 314usize);
+    let mut text = String::from("G90 G1 X-5 Y0 F6000\nG1 X0 Y0\n");
+    for k in 1..=n {
+        let th = std::f64::consts::TAU * k as f64 / n as f64;
+        text += &format!("X{:.6} Y{:.6}\n", r * th.sin(), r - r * th.cos());
+    }
+    text += "G1 X5 Y0\n";
+    let t = run(&m, &text);
+    let h = t.period_s;
+    let (mut a_max, mut v_circle) = (0.0f64, 0.0f64);
+    for k in 2..t.t.len() {
+        let sec = |c: &Vec<f64>| (c[k] - 2.0 * c[k - 1] + c[k - 2]) / (h * h);
+        a_max = a_max.max(sec(&t.axes[0]).abs()).max(sec(&t.axes[1]).abs());
+        if t.line[k] > 3 && (t.line[k] as usize) < n {
+            let v = (t.axes[0][k] - t.axes[0][k - 1]).hypot(t.axes[1][k] - t.axes[1][k - 1]) / h;
+            v_circle = v_circle.max(v);
+        }
+    }
+    let centripetal = (5000.0 * r).sqrt();
+    println!(
+        "chords of R 0.5 at F 6000: {v_circle:.1} mm/s on the circle (√(A·R) {centripetal:.1}), \
+         peak commanded acceleration {a_max:.0} mm/s² (limit 5000)"
+    );
+    assert!(a_max <= 1.2 * 5000.0, "peak acceleration {a_max} mm/s²");
+    assert!(
+        v_circle > 0.8 * centripetal && v_circle < 1.1 * centripetal,
+        "{v_circle} mm/s"
+    );
+}
