@@ -389,3 +389,73 @@ async fn progress_reports_do_not_rewrite_the_input() {
     );
     assert_eq!(store.job_bytes().await.unwrap().input_bytes, 0);
 }
+
+/// Migration 0005 moves the inputs of jobs still waiting into `job_inputs`: a database
+/// made by the previous release (migrations 1–4) with a queued stored job opens, and the job
+/// is claimed with its input intact.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn upgrade_keeps_the_input_of_a_waiting_job() {
+    use sqlx::migrate::{Migration, MigrationType, Migrator};
+    let dir = tempfile::tempdir().unwrap();
+    let url = format!(
+        "sqlite://{}?mode=rwc",
+        dir.path().join("truecut.db").display()
+    );
+    {
+        let old = sqlx::SqlitePool::connect(&url).await.unwrap();
+        let scripts = [
+            (
+                1,
+                "init",
+                include_str!("../../migrations/sqlite/0001_init.sql"),
+            ),
+            (
+                2,
+                "job_times",
+                include_str!("../../migrations/sqlite/0002_job_times.sql"),
+            ),
+            (
+                3,
+                "scale_out",
+                include_str!("../../migrations/sqlite/0003_scale_out.sql"),
+            ),
+            (
+                4,
+                "iso230_runs",
+                include_str!("../../migrations/sqlite/0004_iso230_runs.sql"),
+            ),
+        ];
+        let migrations = scripts
+            .into_iter()
+            .map(|(v, name, sql)| {
+                Migration::new(
+                    v,
+                    name.into(),
+                    MigrationType::Simple,
+                    sqlx::SqlStr::from_static(sql),
+                    false,
+                )
+            })
+            .collect();
+        Migrator::with_migrations(migrations)
+            .run(&old)
+            .await
+            .unwrap();
+        sqlx::query(
+            "INSERT INTO jobs (id, kind, state, progress, owner, created_at, updated_at, input) \
+             VALUES ('waiting', 'stored', 'queued', 0.0, '', 1, 1, '{\"signal\": [1, 2, 3]}')",
+        )
+        .execute(&old)
+        .await
+        .unwrap();
+        old.close().await;
+    }
+    let store = truecut::store::Store::open(dir.path(), None).await.unwrap();
+    store.register_instance(60_000).await.unwrap();
+    assert_eq!(store.count_queued_jobs().await.unwrap(), 1);
+    let job = store.claim_job(&["stored".into()]).await.unwrap().unwrap();
+    assert_eq!(
+        (job.id.as_str(), job.input.as_str()),
+        ("waiting", "{\"signal\": [1, 2, 3]}")
+    );
+}
