@@ -816,11 +816,12 @@ async fn contour_precompensation_stops_at_inside_corners(app: TestApp) {
 }
 on_both_backends!(contour_precompensation_stops_at_inside_corners);
 
-/// Ten 90° corners 2 mm apart at F 2000 on a kv 40 cascade (a staircase): within the default
-/// duration budget (1.15× the original's) the corners cannot slow enough, and the warnings
-/// say that time held them back and name `max_duration_ratio`; with `"max_duration_ratio":
-/// 1.3` the answer, re-read, interpolated and simulated here, meets issue 24's error gates
-/// within 1.3× the original's duration. A ratio outside 1..2 is refused (400) before any work.
+/// Ten 90° corners 2 mm apart at F 2000 on a kv 40 cascade (a staircase): the answer, re-read,
+/// interpolated and simulated here, meets issue 24's gates within the default duration
+/// budget (1.15× the original's; the corners turn on smooth loops, module
+/// `cam::predistort::loops`), and with `"max_duration_ratio": 1.3` it meets them within 1.3×
+/// with a lower error: time buys accuracy. A ratio outside 1..2 is refused (400) before any
+/// work.
 async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
     let def = kv40_machine(&app).await;
     let mut original =
@@ -830,18 +831,12 @@ async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
     }
     original += "M30\n%\n";
     let default = contour_answer(&app, &original).await;
-    let slow = warnings_of(&default)
-        .into_iter()
-        .filter(|w| w.contains("duration budget (max_duration_ratio 1.15"))
-        .count();
-    assert!(slow >= 1, "{:?}", warnings_of(&default));
     let fig = resimulate(&def, &original, default["gcode"].as_str().unwrap());
     println!(
-        "2 mm staircase F2000 kv 40, max_duration_ratio 1.15 (default): {} (gates not met); \
-         {slow} corner warnings name the duration budget",
+        "2 mm staircase F2000 kv 40, max_duration_ratio 1.15 (default): {}",
         fig.summary()
     );
-    assert!(fig.duration <= 1.15, "duration {}x", fig.duration);
+    fig.assert_gates(1.15);
 
     let r = app
         .post_json(
@@ -851,12 +846,20 @@ async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
         .await;
     assert_eq!(r.status(), 200);
     let body: Value = r.json().await.unwrap();
-    let fig = resimulate(&def, &original, body["gcode"].as_str().unwrap());
+    let slow = resimulate(&def, &original, body["gcode"].as_str().unwrap());
     println!(
         "2 mm staircase F2000 kv 40, max_duration_ratio 1.3: {} (allowed 1.3x)",
+        slow.summary()
+    );
+    slow.assert_gates(1.3);
+    // The time bought lowers the error.
+    assert!(
+        slow.rms1 < fig.rms1,
+        "{} / {}",
+        slow.summary(),
         fig.summary()
     );
-    fig.assert_gates(1.3);
+    assert!(slow.duration > fig.duration);
 
     for bad in [0.9, 2.5] {
         let r = app

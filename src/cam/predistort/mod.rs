@@ -41,7 +41,9 @@
 //! each such corner (the braking and accelerating stretches with the three split points) by
 //! Levenberg–Marquardt steps on the simulation's Jacobian (norm-optimal ILC on the lifted
 //! system), under the same gouge rule and 14/15 of the duration budget for both stages together, within
-//! a work bound of simulated periods (a note says when it stops there).
+//! a work bound of simulated periods (a note says when it stops there). Where every such
+//! corner is an outside corner, smooth loops of 20 µm chords beyond the corners (module
+//! `loops`) are tried as well, and kept when they do better within the whole budget.
 //! The figures add the distance-weighted RMS (module `measure`), the gouge and the duration.
 //! Where a speed ramp runs on an arc, the whole run is repeated with the ramps' points within
 //! [`RAMP_CHORD_TOL_MM`] (fewer G01 blocks, each of which restarts the ramp's acceleration)
@@ -54,6 +56,7 @@
 mod corners;
 mod ilc;
 mod limits;
+mod loops;
 mod measure;
 mod notes;
 mod options;
@@ -436,6 +439,8 @@ fn predistort_at(
     let mut lines = lines;
     let mut corner_result = None;
     let mut ilc_bound = None;
+    let orig_fig = loops::original_figures(&orig.report.contour_error, &orig.actual);
+    let looped = loops::try_loops(&mut run, &cur, &pts0, &spots, orig_fig)?;
     if !spots.is_empty() {
         let sigma0 = run.sigma.clone();
         let next = |v: &[f64], k: usize| v[(k + 1).min(v.len() - 1)];
@@ -459,6 +464,14 @@ fn predistort_at(
         cur = pts;
         cur_eval = e;
         corner_result = Some(res);
+    }
+    if let Some(lp) = looped {
+        iterations += lp.simulations;
+        if loops::better(&run, &lp, &cur_eval, &spots, &gouge_cap, orig_fig) {
+            lp.install(&mut run);
+            lines.clone_from(&lp.lines);
+            (cur, cur_eval, corner_result, ilc_bound) = (lp.pts, lp.eval, None, None);
+        }
     }
     // The official figure: the motion core's contour error of the best iterate's actual
     // against the original commanded path (padded at rest to the same length).

@@ -72,33 +72,13 @@ fn feed_of_line(m: &Machine, prog: &gcode::Program, line: usize) -> f64 {
     }
 }
 
-/// What a case is held to: issue 24's gates (distance-weighted RMS ≤ 0.3×, max ≤ 0.5×,
-/// duration ≤ 1.15×, gouge ≤ 1 µm at inside corners), asserted; or, where the pre-distortion
-/// does not reach them, the ratios it does reach (asserted so that it cannot get worse
-/// unnoticed) with the reason, printed beside NOT MET.
-#[derive(Clone, Copy)]
-enum Expect {
-    Gates,
-    Miss {
-        rms: f64,
-        max: f64,
-        why: &'static str,
-    },
-}
-
 /// Runs the pre-distortion (material side `side` for every line, `None`: the rule for
 /// programs without G41/G42), prints original vs compensated beside the goals, re-simulates
 /// the emitted points from text, and checks issue 24's constraints (duration ≤ 1.15×, no
 /// feed lowered beyond the original's own speed, no gouge beyond 1 µm or the original's)
-/// and the ratios of `expect`.
-fn check_corner_goals(
-    name: &str,
-    kv: f64,
-    text: &str,
-    side: Option<MaterialSide>,
-    expect: Expect,
-) -> Predistorted {
-    check_corner_goals_within(name, kv, text, side, expect, DEFAULT_MAX_DURATION_RATIO)
+/// and the error gates (distance-weighted RMS ≤ 0.3×, max ≤ 0.5×).
+fn check_corner_goals(name: &str, kv: f64, text: &str, side: Option<MaterialSide>) -> Predistorted {
+    check_corner_goals_within(name, kv, text, side, DEFAULT_MAX_DURATION_RATIO)
 }
 
 /// [`check_corner_goals`] with the duration allowed up to `ratio` × the original's (the
@@ -108,7 +88,6 @@ fn check_corner_goals_within(
     kv: f64,
     text: &str,
     side: Option<MaterialSide>,
-    expect: Expect,
     ratio: f64,
 ) -> Predistorted {
     let m = machine_kv(kv);
@@ -158,9 +137,6 @@ fn check_corner_goals_within(
         met(gates[2]),
         met(gates[3])
     );
-    if let Expect::Miss { why, .. } = expect {
-        println!("  NOT MET: {why}");
-    }
     for n in &out.notes {
         println!("  note: {n}");
     }
@@ -230,10 +206,7 @@ fn check_corner_goals_within(
         .len();
     assert!((periods as f64 * 1e-3 - c.duration_s).abs() < 1e-9);
     assert!(o.max_mm > 1e-3, "the original must have an error to remove");
-    let (rms, max) = match expect {
-        Expect::Gates => (0.3, 0.5),
-        Expect::Miss { rms, max, .. } => (rms, max),
-    };
+    let (rms, max) = (0.3, 0.5);
     assert!(
         c.rms_distance_mm <= rms * o.rms_distance_mm,
         "{name}: distance-weighted RMS {} vs {}",
@@ -268,50 +241,30 @@ fn issue_contour_meets_the_corner_goals() {
         40.0,
         &issue_program(2000.0),
         None,
-        Expect::Gates,
     );
 }
 
 #[test]
 fn kinked_square_meets_the_corner_goals() {
-    check_corner_goals(
-        "square with 20° kinks F3000",
-        30.0,
-        KINKED_SQUARE,
-        None,
-        Expect::Gates,
-    );
+    check_corner_goals("square with 20° kinks F3000", 30.0, KINKED_SQUARE, None);
 }
 
 /// Short segments: 2 mm steps, 90° corners turning left and right.
 #[test]
 fn short_segments_improve() {
-    check_corner_goals(
-        "2 mm staircase F1000",
-        60.0,
-        &staircase(1000.0),
-        None,
-        Expect::Gates,
-    );
-    let why = "ten corners 2 mm apart, each slowed to its junction speed: the corner stage \
-        and the corner-window ILC spend the time budget (1.13×) on the way to 0.66×; each \
-        braking stretch is a single G01 block (every block ramps from zero acceleration, so \
-        more points there would lengthen the braking further); with more time allowed \
-        (max_duration_ratio 1.3) the gates are met, case below";
-    let miss = Expect::Miss {
-        rms: 0.76,
-        max: 0.85,
-        why,
-    };
-    check_corner_goals("2 mm staircase F2000", 40.0, &staircase(2000.0), None, miss);
+    check_corner_goals("2 mm staircase F1000", 60.0, &staircase(1000.0), None);
+    // Ten corners 2 mm apart: the three split points and the corner-window ILC reach only
+    // 0.66× within 1.15× the time (each corner passes at the 5 mm/s junction speed and the
+    // tool needs 1/kv = 25 ms to catch up); smooth loops of 20 µm chords (module `loops`)
+    // turn the corners at the speed their curvature allows and meet the gates.
+    check_corner_goals("2 mm staircase F2000", 40.0, &staircase(2000.0), None);
     // The same program with more time allowed (the request's max_duration_ratio 1.3): the
-    // corners slow further and the error gates are met.
+    // error falls further.
     check_corner_goals_within(
         "2 mm staircase F2000, max_duration_ratio 1.3",
         40.0,
         &staircase(2000.0),
         None,
-        Expect::Gates,
         1.3,
     );
 }
@@ -324,60 +277,28 @@ fn arc_line_corners() {
         30.0,
         &arc_line(3000.0),
         None,
-        Expect::Gates,
     );
     check_corner_goals(
         "line–half circle R10–line F1000",
         50.0,
         &arc_line(1000.0),
         None,
-        Expect::Gates,
     );
 }
 
 /// 140° turns (acute corners) across the feed and gain ranges.
 #[test]
 fn acute_corners_meet_the_goals() {
-    check_corner_goals(
-        "140° turn + 90° corner F1500",
-        50.0,
-        &acute(1500.0),
-        None,
-        Expect::Gates,
-    );
-    check_corner_goals(
-        "140° turn + 90° corner F1000",
-        60.0,
-        &acute(1000.0),
-        None,
-        Expect::Gates,
-    );
-    check_corner_goals(
-        "140° turn + 90° corner F3000",
-        30.0,
-        &acute(3000.0),
-        None,
-        Expect::Gates,
-    );
+    check_corner_goals("140° turn + 90° corner F1500", 50.0, &acute(1500.0), None);
+    check_corner_goals("140° turn + 90° corner F1000", 60.0, &acute(1000.0), None);
+    check_corner_goals("140° turn + 90° corner F3000", 30.0, &acute(3000.0), None);
 }
 
 /// 90° corners across the feed and gain ranges.
 #[test]
 fn square_corners() {
-    check_corner_goals(
-        "10 mm square F1000",
-        30.0,
-        &square(1000.0),
-        None,
-        Expect::Gates,
-    );
-    check_corner_goals(
-        "10 mm square F3000",
-        60.0,
-        &square(3000.0),
-        None,
-        Expect::Gates,
-    );
+    check_corner_goals("10 mm square F1000", 30.0, &square(1000.0), None);
+    check_corner_goals("10 mm square F3000", 60.0, &square(3000.0), None);
 }
 
 /// Inside corners (G41 with left turns: the material lies outside every turn, as in a
@@ -389,7 +310,6 @@ fn inside_corners_do_not_gouge() {
         40.0,
         &square(2000.0),
         Some(MaterialSide::Right),
-        Expect::Gates,
     );
     assert!(out.compensated.gouge_mm <= GOUGE_LIMIT_MM);
     // The tool stops at each of the three inside corners (the fourth is the program's end),
@@ -423,37 +343,24 @@ fn inside_corners_do_not_gouge() {
 #[test]
 fn held_out_corner_programs() {
     let sq = |s: f64, f: f64| format!("G90 G17 G94\nG1 X{s} F{f}\nG1 Y{s}\nG1 X0\nG1 Y0\n");
-    check_corner_goals(
-        "12 mm square F2000",
-        45.0,
-        &sq(12.0, 2000.0),
-        None,
-        Expect::Gates,
-    );
-    check_corner_goals(
-        "6 mm square F2500",
-        35.0,
-        &sq(6.0, 2500.0),
-        None,
-        Expect::Gates,
-    );
+    check_corner_goals("12 mm square F2000", 45.0, &sq(12.0, 2000.0), None);
+    check_corner_goals("6 mm square F2500", 35.0, &sq(6.0, 2500.0), None);
     let mut stairs = String::from("G90 G17 G94\nG1 X3 F1500\n");
     for k in 1..=4 {
         stairs += &format!("G1 Y{}\nG1 X{}\n", 3 * k, 3 * k + 3);
     }
-    check_corner_goals("3 mm staircase F1500", 50.0, &stairs, None, Expect::Gates);
+    check_corner_goals("3 mm staircase F1500", 50.0, &stairs, None);
     let (x1, y1) = step(20.0, 0.0, 120.0, 12.0);
     let (x2, y2) = step(x1, y1, 240.0, 12.0);
     let turns = format!("G90 G17 G94\nG1 X20 F2500\nG1 X{x1} Y{y1}\nG1 X{x2} Y{y2}\n");
-    check_corner_goals("120° turns F2500", 45.0, &turns, None, Expect::Gates);
+    check_corner_goals("120° turns F2500", 45.0, &turns, None);
     let arc = "G90 G17 G94\nG1 X15 F2000\nG2 X27 Y0 I6 J0\nG1 X40\n";
-    check_corner_goals("line–arc R6–line F2000", 40.0, arc, None, Expect::Gates);
+    check_corner_goals("line–arc R6–line F2000", 40.0, arc, None);
     let pocket = sq(8.0, 1500.0);
     check_corner_goals(
         "8 mm square G41 F1500",
         50.0,
         &pocket,
         Some(MaterialSide::Right),
-        Expect::Gates,
     );
 }
