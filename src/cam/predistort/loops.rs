@@ -2,7 +2,8 @@
 //! corners"): an alternative to the corner stage's three split points.
 //!
 //! Each corner the junction limit slows is replaced, from `a` mm before it to `b` mm after
-//! it on the original path, by G01 points every [`LOOP_STEP_MM`] on a cubic Bézier curve
+//! it on the original path, by G01 points on a cubic Bézier curve (equal steps of its
+//! parameter, as many as make the chords [`LOOP_STEP_MM`] long on average)
 //! whose control points lie beyond the corner: `C1 = c + o1·d_in − w1·d_out` and
 //! `C2 = c + w2·d_in − o2·d_out` (`c` the corner, `d_in`/`d_out` the unit tangents of the path
 //! into and out of it). The command is carried on past the corner along the incoming
@@ -29,9 +30,10 @@ use super::measure::{distance_weighted_rms, tips_of};
 use super::run::{Eval, Run, norm, round_to, sub};
 use super::{Error, POSITION_DECIMALS};
 
-/// Spacing (mm) of the G01 points along a loop (20 µm): the chords stay within a fraction
-/// of a micrometre of the curve, and at the loops' speeds (tens of mm/s) each chord lasts
-/// about a period, so the interpolator's junction rule sees the curve's own curvature.
+/// Mean spacing (mm) of the G01 points along a loop (20 µm; the points are at equal steps of
+/// the curve's parameter): the chords stay within a fraction of a micrometre of the curve,
+/// and at the loops' speeds (tens of mm/s) each chord lasts about a period, so the
+/// interpolator's junction rule sees the curve's own curvature.
 pub const LOOP_STEP_MM: f64 = 0.02;
 
 /// Work bound of the loop search: simulated interpolation periods (all candidates' whole
@@ -210,10 +212,11 @@ pub(super) fn figures(e: &Eval) -> (f64, f64) {
 }
 
 /// Searches the loops of the corners `spots` of the undistorted points `pts0`, starting from
-/// the points `cur` (the main iteration's; the run's arrays describe them on entry). `orig` is the original's (distance-weighted RMS, max)
-/// in mm. Returns `None` when a corner is an inside corner or has no room for a loop. The
-/// run's arrays are those of the last candidate tried on return: the caller restores them.
-pub(super) fn search(
+/// the points `cur` (the main iteration's; the run's arrays describe them on entry). `orig`
+/// is the original's (distance-weighted RMS, max) in mm. Returns `None` when a corner is an
+/// inside corner or has no room for a loop. The run's arrays are those of the last candidate
+/// tried on return: [`try_loops`] restores them.
+fn search(
     run: &mut Run,
     cur: &[[f64; 3]],
     pts0: &[[f64; 3]],
