@@ -16,7 +16,9 @@
 //! The six numbers per corner are found by pattern search on the exact interpolation and
 //! simulation (the same [`Run::evaluate`] as the other stages): first one set shared by
 //! all corners, in units of the servo's lag length `λ = v/kv` (the feed over the slowest
-//! position-loop gain), then each corner's own, coordinate by coordinate, halving the step.
+//! position-loop gain; 15 starting shapes, then a pattern search), then each corner's own,
+//! coordinate by coordinate, halving the step, and starting again from the largest step
+//! (at most twice) while a round still improves.
 //! The objective is the distance-weighted RMS plus 0.3× the max, each against the original's,
 //! plus a steep penalty on time beyond the duration budget
 //! ([`super::PredistortOptions::max_duration_ratio`]). The work is bounded by
@@ -307,8 +309,8 @@ fn search(
     let mut best: Option<(f64, Arrays, Eval, Vec<[f64; 6]>)> = None;
     let mut u_best = [0.5, 0.9, 0.5, 0.05];
     for a in [0.1, 0.5, 0.9] {
-        for o1 in [0.3, 0.6] {
-            let u = [a, 0.9, o1, 0.05];
+        for (b, o1) in [(0.9, 0.3), (0.9, 0.6), (0.6, 0.3), (1.2, 0.6), (0.9, 0.9)] {
+            let u = [a, b, o1, 0.05];
             let params = shared(&u);
             if let Some((s, cand, e)) = eval(run, &params)? {
                 if best.as_ref().is_none_or(|b| s < b.0) {
@@ -356,8 +358,21 @@ fn search(
     };
     let mut scores = window(run, &best.2);
     let min_lag = lag.iter().copied().fold(f64::INFINITY, f64::min);
+    let mut rounds = 0;
+    let mut round_start = best.0;
     let mut step = 0.05 * min_lag;
-    while step > 0.003 * min_lag && !spent() {
+    loop {
+        if step <= 0.003 * min_lag {
+            rounds += 1;
+            if rounds >= 3 || best.0 >= round_start - 1e-9 {
+                break;
+            }
+            round_start = best.0;
+            step = 0.05 * min_lag;
+        }
+        if spent() {
+            break;
+        }
         let mut improved = false;
         for i in 0..6 {
             for sgn in [1.0, -1.0] {
