@@ -51,23 +51,19 @@ const LATE_WEIGHT: f64 = 100.0;
 /// What the loop search found: the points, the [`Run`] arrays that follow them, their
 /// simulation.
 pub(super) struct Loops {
-    pub pts: Vec<[f64; 3]>,
-    pub base_feed: Vec<f64>,
-    pub sigma: Vec<f64>,
-    pub base_len: Vec<f64>,
-    pub lines: Vec<usize>,
+    pub arrays: Arrays,
     pub eval: Eval,
     /// Simulations run.
     pub simulations: usize,
 }
 
 /// Per-point arrays of a candidate (the [`Run`] fields that follow the points).
-struct Arrays {
-    pts: Vec<[f64; 3]>,
+pub(super) struct Arrays {
+    pub pts: Vec<[f64; 3]>,
     base_feed: Vec<f64>,
     sigma: Vec<f64>,
     base_len: Vec<f64>,
-    lines: Vec<usize>,
+    pub lines: Vec<usize>,
 }
 
 /// The loop of one corner for parameters `p` = `[a, b, o1, o2, w1, w2]` (mm): points from
@@ -198,7 +194,8 @@ impl Arrays {
         self.lines.push(base.lines[k]);
     }
 
-    fn install(&self, run: &mut Run) {
+    /// Makes the run describe these points (no dwells).
+    pub(super) fn install(&self, run: &mut Run) {
         run.base_feed.clone_from(&self.base_feed);
         run.sigma.clone_from(&self.sigma);
         run.base_len.clone_from(&self.base_len);
@@ -417,13 +414,9 @@ fn search(
     }
     let (_, cand, e, _) = best;
     Ok(Some(Loops {
+        arrays: cand,
         eval: e,
         simulations: simulations.get(),
-        base_feed: cand.base_feed,
-        sigma: cand.sigma,
-        base_len: cand.base_len,
-        lines: cand.lines,
-        pts: cand.pts,
     }))
 }
 
@@ -481,17 +474,6 @@ pub(super) fn better(
     let gouges = super::corners::score(&run.reference, spots, &lp.eval);
     let clean = gouges.iter().zip(gouge_cap).all(|(s, cap)| s.gouge <= *cap);
     in_time && clean && score(&lp.eval) < score(other)
-}
-
-impl Loops {
-    /// Makes the run describe the loops' points (no dwells).
-    pub(super) fn install(&self, run: &mut Run) {
-        run.base_feed.clone_from(&self.base_feed);
-        run.sigma.clone_from(&self.sigma);
-        run.base_len.clone_from(&self.base_len);
-        run.lines.clone_from(&self.lines);
-        run.dwell_s.clear();
-    }
 }
 
 #[cfg(test)]

@@ -468,9 +468,9 @@ fn predistort_at(
     if let Some(lp) = looped {
         iterations += lp.simulations;
         if loops::better(&run, &lp, &cur_eval, &spots, &gouge_cap, orig_fig) {
-            lp.install(&mut run);
-            lines.clone_from(&lp.lines);
-            (cur, cur_eval, corner_result, ilc_bound) = (lp.pts, lp.eval, None, None);
+            lp.arrays.install(&mut run);
+            lines.clone_from(&lp.arrays.lines);
+            (cur, cur_eval, corner_result, ilc_bound) = (lp.arrays.pts, lp.eval, None, None);
         }
     }
     // The official figure: the motion core's contour error of the best iterate's actual
