@@ -148,7 +148,12 @@ fn windows(pts: &[[f64; 3]], corners: &[CornerSpot], fixed: &dyn Fn(usize) -> bo
 /// Residuals of corner `spot` on the simulation `e` (module docs): at each of [`GRID`] points
 /// equally spaced in tool path length over the window, the error vector's three components
 /// times `√Δs` (mm·√mm) and the gouge term (zero at an outside corner).
-fn residuals(reference: &Reference, spot: &CornerSpot, e: &Eval, tips: &[[f64; 3]]) -> Vec<f64> {
+pub(super) fn residuals(
+    reference: &Reference,
+    spot: &CornerSpot,
+    e: &Eval,
+    tips: &[[f64; 3]],
+) -> Vec<f64> {
     let feet = &e.feet;
     let n = feet.len();
     let mut out = Vec::with_capacity(4 * GRID);

@@ -150,6 +150,30 @@ impl Reference {
         self.steady.push(steady);
     }
 
+    /// Point (mm) at arc parameter `sigma` (mm, clamped to the path) and the unit direction
+    /// of the chord it lies on (the path's tangent there, within half a chord's turn).
+    pub fn point_at(&self, sigma: f64) -> ([f64; 3], [f64; 3]) {
+        let n = self.knots.len();
+        if n < 2 {
+            return (self.knots.first().copied().unwrap_or([0.0; 3]), [0.0; 3]);
+        }
+        let i = self.cum.partition_point(|c| *c <= sigma).clamp(1, n - 1);
+        let (a, b) = (self.knots[i - 1], self.knots[i]);
+        let len = self.cum[i] - self.cum[i - 1];
+        let f = if len > 0.0 {
+            ((sigma - self.cum[i - 1]) / len).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        let p = std::array::from_fn(|d| a[d] + f * (b[d] - a[d]));
+        let t = if len > 0.0 {
+            std::array::from_fn(|d| (b[d] - a[d]) / len)
+        } else {
+            [0.0; 3]
+        };
+        (p, t)
+    }
+
     /// Largest speed (mm/s) of the original command over the arc parameters `lo..=hi` (mm).
     pub fn max_speed(&self, lo: f64, hi: f64) -> f64 {
         let a = self.cum.partition_point(|c| *c < lo).saturating_sub(1);

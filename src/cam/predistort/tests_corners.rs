@@ -90,6 +90,20 @@ fn check_corner_goals_within(
     side: Option<MaterialSide>,
     ratio: f64,
 ) -> Predistorted {
+    check_corners(name, kv, text, side, ratio, 0.3)
+}
+
+/// [`check_corner_goals_within`] with the distance-weighted RMS gate at `rms_gate` × the
+/// original's (issue 24's is 0.3×; a looser one only where the closing note says the gate is
+/// not met).
+fn check_corners(
+    name: &str,
+    kv: f64,
+    text: &str,
+    side: Option<MaterialSide>,
+    ratio: f64,
+    rms_gate: f64,
+) -> Predistorted {
     let m = machine_kv(kv);
     let prog = gcode::parse(text).unwrap();
     let opts = PredistortOptions {
@@ -124,13 +138,13 @@ fn check_corner_goals_within(
     );
     let met = |ok: bool| if ok { "met" } else { "NOT MET" };
     let gates = [
-        c.rms_distance_mm <= 0.3 * o.rms_distance_mm,
+        c.rms_distance_mm <= rms_gate * o.rms_distance_mm,
         c.max_mm <= 0.5 * o.max_mm,
         c.duration_s <= ratio * o.duration_s,
         c.gouge_mm <= GOUGE_LIMIT_MM.max(o.gouge_mm),
     ];
     println!(
-        "  gates: RMS ≤ 0.3× {}, max ≤ 0.5× {}, duration ≤ {ratio}× {}, no gouge on the material \
+        "  gates: RMS ≤ {rms_gate}× {}, max ≤ 0.5× {}, duration ≤ {ratio}× {}, no gouge on the material \
          side (≤ 1 µm, or the original's where it cuts the turn) {}",
         met(gates[0]),
         met(gates[1]),
@@ -206,7 +220,7 @@ fn check_corner_goals_within(
         .len();
     assert!((periods as f64 * 1e-3 - c.duration_s).abs() < 1e-9);
     assert!(o.max_mm > 1e-3, "the original must have an error to remove");
-    let (rms, max) = (0.3, 0.5);
+    let (rms, max) = (rms_gate, 0.5);
     assert!(
         c.rms_distance_mm <= rms * o.rms_distance_mm,
         "{name}: distance-weighted RMS {} vs {}",
@@ -269,6 +283,36 @@ fn short_segments_improve() {
     );
 }
 
+/// The 2 mm staircase at the slow end of issue 24's gains (kv 30), F 2000 and F 3000.
+#[test]
+fn short_segments_on_slow_axes() {
+    check_corner_goals("2 mm staircase F2000", 30.0, &staircase(2000.0), None);
+    check_corner_goals("2 mm staircase F3000", 30.0, &staircase(3000.0), None);
+}
+
+/// Where the gate is not met: the 2 mm staircase on stiffer axes (kv 45–60) at F 2000–3000
+/// ends at 0.305–0.48× RMS within 1.15× the time (0.17–0.36× within 1.25×: the time budget
+/// binds, every answer ends at 1.148–1.150×). It must still at least halve the error.
+#[test]
+fn short_segments_on_stiff_axes_halve_the_error() {
+    check_corners(
+        "2 mm staircase F2000",
+        45.0,
+        &staircase(2000.0),
+        None,
+        1.15,
+        0.5,
+    );
+    check_corners(
+        "2 mm staircase F3000",
+        60.0,
+        &staircase(3000.0),
+        None,
+        1.15,
+        0.5,
+    );
+}
+
 /// Arcs meeting lines at 90° corners.
 #[test]
 fn arc_line_corners() {
@@ -284,6 +328,15 @@ fn arc_line_corners() {
         &arc_line(1000.0),
         None,
     );
+    // The loops run the corners without the original's braking, so the points on the arc
+    // before the second corner, pre-distorted for a slow pass, must follow the loops' timing
+    // (module `loops::settle`; without it 0.308× / 0.309×, the split points' answer).
+    check_corner_goals(
+        "line–half circle R10–line F3000",
+        60.0,
+        &arc_line(3000.0),
+        None,
+    );
 }
 
 /// 140° turns (acute corners) across the feed and gain ranges.
@@ -292,6 +345,8 @@ fn acute_corners_meet_the_goals() {
     check_corner_goals("140° turn + 90° corner F1500", 50.0, &acute(1500.0), None);
     check_corner_goals("140° turn + 90° corner F1000", 60.0, &acute(1000.0), None);
     check_corner_goals("140° turn + 90° corner F3000", 30.0, &acute(3000.0), None);
+    // Loops, then the points between them for the loops' timing (0.367× before).
+    check_corner_goals("140° turn + 90° corner F3000", 60.0, &acute(3000.0), None);
 }
 
 /// 90° corners across the feed and gain ranges.

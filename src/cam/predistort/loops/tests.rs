@@ -2,15 +2,21 @@
 
 use super::*;
 
-/// A loop starts after `c − a·d_in` (that point is the last kept one) and ends at
-/// `c + b·d_out`, with chords of [`LOOP_STEP_MM`] on average (longer near the ends, where the
+/// A loop at the corner `c` = (2, 0) starts after `c − a·d_in` (that point is the last kept
+/// one) and ends at `c + b·d_out`, with chords of [`LOOP_STEP_MM`] on average (longer near the ends, where the
 /// curve leaves its end points fastest: at most three times that here), and goes beyond the
 /// corner along `d_in`, less far than its control point `C1`.
 #[test]
 fn loop_geometry() {
-    let (c, d_in, d_out) = ([2.0, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
+    let (d_in, d_out) = ([1.0, 0.0, 0.0], [0.0, 1.0, 0.0]);
     let p = [0.5, 0.6, 0.3, 0.0, 0.0, 0.0];
-    let pts = loop_points(c, d_in, d_out, &p);
+    let pts = loop_points(
+        ([1.5, 0.0, 0.0], d_in),
+        ([2.0, 0.6, 0.0], d_out),
+        d_in,
+        d_out,
+        &p,
+    );
     let last = *pts.last().unwrap();
     assert!(norm(sub(last, [2.0, 0.6, 0.0])) < 1e-12, "{last:?}");
     let mut prev = [1.5, 0.0, 0.0];
@@ -34,7 +40,8 @@ fn loop_geometry() {
         reach > 0.0 && reach < 0.3,
         "beyond the corner by {reach} mm"
     );
-    // The straight length on either side of the corner, up to a point off the line.
+    // The smooth length on either side of the corner, up to the next turn of more than
+    // SMOOTH_TURN_DEG between two chords.
     let path = [
         [0.5, 0.0, 0.0],
         [1.0, 0.0, 0.0],
@@ -44,8 +51,35 @@ fn loop_geometry() {
     ];
     let free = |_: usize| false;
     let start = [0.0; 3];
-    assert!((straight_extent(&path, start, 2, d_in, true, &free) - 2.0).abs() < 1e-12);
-    assert!((straight_extent(&path, start, 2, d_out, false, &free) - 1.5).abs() < 1e-12);
+    assert!((smooth_extent(&path, start, 2, true, &free) - 2.0).abs() < 1e-12);
+    assert!((smooth_extent(&path, start, 2, false, &free) - 1.5).abs() < 1e-12);
     let kept = |j: usize| j == 0;
-    assert!((straight_extent(&path, start, 2, d_in, true, &kept) - 1.0).abs() < 1e-12);
+    assert!((smooth_extent(&path, start, 2, true, &kept) - 1.0).abs() < 1e-12);
+}
+
+/// On an arc (chords turning by 5° each) the smooth stretch runs on to the arc's end, where
+/// the path turns by 15°; a loop's end point and tangent there are the path's own.
+#[test]
+fn loops_reach_along_arcs() {
+    let r = 10.0;
+    let on = |deg: f64| {
+        let t = deg.to_radians();
+        [r * t.cos(), r * t.sin(), 0.0]
+    };
+    // From the corner at 0°, chords of 5° up to 45°, then a turn of 15° more.
+    let mut path: Vec<[f64; 3]> = (0..=9).map(|k| on(5.0 * f64::from(k))).collect();
+    let end = *path.last().unwrap();
+    let (u, v) = (
+        (135.0f64 + 20.0).to_radians().cos(),
+        (135.0f64 + 20.0).to_radians().sin(),
+    );
+    path.push([end[0] + u, end[1] + v, 0.0]);
+    let chord = 2.0 * r * (2.5f64.to_radians()).sin();
+    let free = |_: usize| false;
+    let reach = smooth_extent(&path, [r, -1.0, 0.0], 0, false, &free);
+    assert!(
+        (reach - 9.0 * chord).abs() < 1e-9,
+        "{reach} vs {}",
+        9.0 * chord
+    );
 }
