@@ -69,7 +69,7 @@ use crate::motion::gcode::{Block, Motion};
 use crate::motion::{self, Kinematics, Machine, Program, contour_error, predict_program};
 pub use corners::{GOUGE_LIMIT_MM, SEARCH_SHARE};
 use limits::{junction_limits, refuse_sharp_junctions, turns_above};
-use notes::{corner_notes, refusal_notes, residual_notes, stop_notes};
+use notes::{corner_notes, loop_notes, refusal_notes, residual_notes, stop_notes};
 pub use options::{DEFAULT_MAX_DURATION_RATIO, MAX_DURATION_RATIO, PredistortOptions};
 use reference::{Reference, correction, smooth};
 use run::{Eval, Run, ceil_to, norm, round_to, sub};
@@ -441,6 +441,8 @@ fn predistort_at(
     let mut ilc_bound = None;
     let orig_fig = loops::original_figures(&orig.report.contour_error, &orig.actual);
     let looped = loops::try_loops(&mut run, &cur, &pts0, &spots, orig_fig)?;
+    let pre_corner = corners::score(&run.reference, &spots, &cur_eval);
+    let mut loop_note = None;
     if !spots.is_empty() {
         let sigma0 = run.sigma.clone();
         let next = |v: &[f64], k: usize| v[(k + 1).min(v.len() - 1)];
@@ -470,6 +472,9 @@ fn predistort_at(
         if loops::better(&run, &lp, &cur_eval, &spots, &gouge_cap, orig_fig) {
             lp.arrays.install(&mut run);
             lines.clone_from(&lp.arrays.lines);
+            let after = corners::score(&run.reference, &spots, &lp.eval);
+            let limit = lp.limit(&run, opts.max_duration_ratio);
+            loop_note = Some(loop_notes(&spots, &pre_corner, &after, &limit));
             (cur, cur_eval, corner_result, ilc_bound) = (lp.arrays.pts, lp.eval, None, None);
         }
     }
@@ -533,6 +538,7 @@ fn predistort_at(
         notes.extend(stop_notes(&spots, res, &run.dwell_s));
         notes.extend(corner_notes(&spots, res, opts.max_duration_ratio));
     }
+    notes.extend(loop_note.into_iter().flatten());
     if let (Some(steps), Some(first)) = (ilc_bound, spots.first()) {
         notes.push(format!(
             "line {}: the corner-window refinement of this corner and the program's {} others \

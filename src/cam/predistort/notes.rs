@@ -1,6 +1,6 @@
 //! The notes of a pre-distortion: sentences on where it could not help, and why.
 
-use super::corners::{CornerResult, CornerSpot, GOUGE_LIMIT_MM};
+use super::corners::{CornerResult, CornerScore, CornerSpot, GOUGE_LIMIT_MM};
 use super::reference::Reference;
 use crate::motion::Machine;
 
@@ -60,6 +60,74 @@ pub(super) fn corner_notes(
     }
     if more > 0 {
         out.push(format!("and {more} more corners like these"));
+    }
+    out
+}
+
+/// Why the loops (module `loops`) left corners above the gates.
+pub(super) enum LoopLimit {
+    /// The program reached its duration budget (`max_duration_ratio`).
+    Time(f64),
+    /// The search stopped at its work bound (the original program's length, s).
+    Work(f64),
+    /// Neither: no loop shape within the room between the neighbouring corners did better.
+    Room,
+}
+
+/// One sentence per corner the loops turn whose largest error stayed above 0.5× its error
+/// before the corner stages (`before`; `after` with the loops) or whose distance-weighted RMS
+/// stayed above 0.3× (corners with an error above 1 µm before), at most 20, each naming what
+/// held the loops back (`limit`, the same for every corner: the loops are searched
+/// together).
+pub(super) fn loop_notes(
+    spots: &[CornerSpot],
+    before: &[CornerScore],
+    after: &[CornerScore],
+    limit: &LoopLimit,
+) -> Vec<String> {
+    let rms = |x: &CornerScore| (x.sum_sq / x.len.max(1e-12)).sqrt();
+    let left: Vec<usize> = (0..spots.len())
+        .filter(|&c| {
+            let (b, a) = (&before[c], &after[c]);
+            b.max > 1e-3 && (a.max > 0.5 * b.max || rms(a) > 0.3 * rms(b))
+        })
+        .collect();
+    let why = match limit {
+        LoopLimit::Time(ratio) => format!(
+            "the smooth loops that turn the program's corners took it to its duration budget \
+             (max_duration_ratio {ratio}); a larger ratio lets the loops grow and take out more \
+             of the servo's lag"
+        ),
+        LoopLimit::Work(seconds) => format!(
+            "the search for the loops stopped at its work bound ({} simulated interpolation \
+             periods; each trial simulates the whole {seconds:.1} s program): compensating a \
+             shorter section of the program around its corners lets it search further",
+            super::loops::LOOP_WORK_PERIODS
+        ),
+        LoopLimit::Room => "no smooth loop within the room between this corner and its \
+             neighbours did better: the corners follow each other closer than the servo needs \
+             to catch up"
+            .to_string(),
+    };
+    let mut out: Vec<String> = left
+        .iter()
+        .take(20)
+        .map(|&c| {
+            let (s, b, a) = (&spots[c], &before[c], &after[c]);
+            format!(
+                "line {}: corner (turn {:.0}°): contour error {:.1} µm before, {:.1} µm after \
+                 (max), distance-weighted RMS {:.1} → {:.1} µm; {why}",
+                s.line,
+                s.turn_rad.to_degrees(),
+                b.max * 1e3,
+                a.max * 1e3,
+                rms(b) * 1e3,
+                rms(a) * 1e3
+            )
+        })
+        .collect();
+    if left.len() > 20 {
+        out.push(format!("and {} more corners like these", left.len() - 20));
     }
     out
 }

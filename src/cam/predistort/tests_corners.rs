@@ -303,7 +303,7 @@ fn short_segments_on_stiff_axes_halve_the_error() {
         1.15,
         0.5,
     );
-    check_corners(
+    let out = check_corners(
         "2 mm staircase F3000",
         60.0,
         &staircase(3000.0),
@@ -311,6 +311,17 @@ fn short_segments_on_stiff_axes_halve_the_error() {
         1.15,
         0.5,
     );
+    // The answer says so, corner by corner, and why.
+    for line in 2..=11 {
+        assert!(
+            out.notes.iter().any(
+                |n| n.starts_with(&format!("line {line}: corner (turn 90°)"))
+                    && n.contains("duration budget (max_duration_ratio 1.15)")
+            ),
+            "line {line}: {:?}",
+            out.notes
+        );
+    }
 }
 
 /// Arcs meeting lines at 90° corners.

@@ -41,6 +41,7 @@
 
 use super::corners::CornerSpot;
 use super::measure::{distance_weighted_rms, tips_of};
+use super::notes::LoopLimit;
 use super::reference::Reference;
 use super::run::{Eval, Run, norm, round_to, sub};
 use super::{Error, POSITION_DECIMALS};
@@ -74,6 +75,24 @@ pub(super) struct Loops {
     pub eval: Eval,
     /// Simulations run.
     pub simulations: usize,
+    /// The work bound [`LOOP_WORK_PERIODS`] stopped the search before it ended.
+    pub bounded: bool,
+}
+
+impl Loops {
+    /// What held the loops back, for the notes: the duration budget where the answer takes
+    /// more than 95 % of it (`max_duration_ratio` the run's), else the work bound where it
+    /// stopped the search, else the room between the corners.
+    pub(super) fn limit(&self, run: &Run, max_duration_ratio: f64) -> LoopLimit {
+        let orig = run.orig_periods as f64;
+        if self.eval.periods as f64 > (1.0 + 0.95 * run.time_budget) * orig {
+            LoopLimit::Time(max_duration_ratio)
+        } else if self.bounded {
+            LoopLimit::Work(orig * run.period_s)
+        } else {
+            LoopLimit::Room
+        }
+    }
 }
 
 /// Per-point arrays of a candidate (the [`Run`] fields that follow the points).
@@ -464,6 +483,7 @@ fn search(
         }
     }
     let mut best = found.unwrap_or(best);
+    let bounded = spent();
     // Stage 4 (module `settle`): the points between the loops, for the loops' timing.
     let fixed: Vec<bool> = best
         .1
@@ -477,6 +497,7 @@ fn search(
         arrays: cand,
         eval: e,
         simulations: simulations.get(),
+        bounded,
     }))
 }
 
