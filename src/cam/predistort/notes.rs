@@ -4,6 +4,22 @@ use super::corners::{CornerResult, CornerScore, CornerSpot, GOUGE_LIMIT_MM};
 use super::reference::Reference;
 use crate::motion::Machine;
 
+/// The sentence on corner `s` with its scores `b` before and `a` after, and `why` it kept
+/// them.
+fn corner_sentence(s: &CornerSpot, b: &CornerScore, a: &CornerScore, why: &str) -> String {
+    let rms = |x: &CornerScore| (x.sum_sq / x.len.max(1e-12)).sqrt();
+    format!(
+        "line {}: corner (turn {:.0}°): contour error {:.1} µm before, {:.1} µm after (max), \
+         distance-weighted RMS {:.1} → {:.1} µm; {why}",
+        s.line,
+        s.turn_rad.to_degrees(),
+        b.max * 1e3,
+        a.max * 1e3,
+        rms(b) * 1e3,
+        rms(a) * 1e3
+    )
+}
+
 /// One sentence per corner of the corner stage whose largest error stayed above 0.5× its
 /// original one or whose distance-weighted RMS stayed above 0.3× (corners with an original
 /// error above 1 µm), naming what held the search back, at most 20. `max_duration_ratio` is
@@ -47,16 +63,7 @@ pub(super) fn corner_notes(
                 s.v_junction
             )
         };
-        out.push(format!(
-            "line {}: corner (turn {:.0}°): contour error {:.1} µm before, {:.1} µm after (max), \
-             distance-weighted RMS {:.1} → {:.1} µm; {why}",
-            s.line,
-            s.turn_rad.to_degrees(),
-            b.max * 1e3,
-            a.max * 1e3,
-            rms(b) * 1e3,
-            rms(a) * 1e3
-        ));
+        out.push(corner_sentence(s, &b, &a, &why));
     }
     if more > 0 {
         out.push(format!("and {more} more corners like these"));
@@ -112,19 +119,7 @@ pub(super) fn loop_notes(
     let mut out: Vec<String> = left
         .iter()
         .take(20)
-        .map(|&c| {
-            let (s, b, a) = (&spots[c], &before[c], &after[c]);
-            format!(
-                "line {}: corner (turn {:.0}°): contour error {:.1} µm before, {:.1} µm after \
-                 (max), distance-weighted RMS {:.1} → {:.1} µm; {why}",
-                s.line,
-                s.turn_rad.to_degrees(),
-                b.max * 1e3,
-                a.max * 1e3,
-                rms(b) * 1e3,
-                rms(a) * 1e3
-            )
-        })
+        .map(|&c| corner_sentence(&spots[c], &before[c], &after[c], &why))
         .collect();
     if left.len() > 20 {
         out.push(format!("and {} more corners like these", left.len() - 20));
