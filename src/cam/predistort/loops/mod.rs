@@ -222,6 +222,17 @@ fn candidate(
             reference.point_at(spot.sigma - a),
             reference.point_at(spot.sigma + b),
         );
+        // A line the loop would leave without a point would be written as programmed (to
+        // the corner, before the loop): it keeps the loop's start, on the path.
+        let corner_line = base.lines[spot.k];
+        if out.lines.last() != Some(&corner_line) {
+            out.pts.push(round3(ends.0.0));
+            out.base_feed.push(base.base_feed[spot.k]);
+            out.sigma.push(spot.sigma - a);
+            out.base_len.push(0.0);
+            out.lines.push(corner_line);
+            out.in_loop.push(true);
+        }
         let pts = loop_points(ends.0, ends.1, spot.d_in, spot.d_out, &params[c]);
         let n = pts.len();
         let next = (spot.k + 1).min(m - 1);
