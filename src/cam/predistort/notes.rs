@@ -73,7 +73,8 @@ pub(super) fn corner_notes(
 
 /// Why the loops (module `loops`) left corners above the gates.
 pub(super) enum LoopLimit {
-    /// The program reached its duration budget (`max_duration_ratio`).
+    /// The program reached its duration budget (`max_duration_ratio`), or the loops were
+    /// searched a second time for it (module `loops`).
     Time(f64),
     /// The search stopped at its work bound (the original program's length, s).
     Work(f64),
@@ -101,9 +102,9 @@ pub(super) fn loop_notes(
         .collect();
     let why = match limit {
         LoopLimit::Time(ratio) => format!(
-            "the smooth loops that turn the program's corners took it to its duration budget \
-             (max_duration_ratio {ratio}); a larger ratio lets the loops grow and take out more \
-             of the servo's lag"
+            "the duration budget (max_duration_ratio {ratio}) binds: larger loops at the \
+             program's corners, or the points around them moved further, would take the program \
+             past it; a larger ratio lets the loops grow and take out more of the servo's lag"
         ),
         LoopLimit::Work(seconds) => format!(
             "the search for the loops stopped at its work bound ({} simulated interpolation \

@@ -83,3 +83,62 @@ fn loops_reach_along_arcs() {
         9.0 * chord
     );
 }
+
+/// Stage 5's offsets: around a 90° corner at (2, 0) with points every 20 µm, each moving
+/// point's direction is the normal to the path in the corner's plane, the offset fades to zero
+/// at the window's ends (lo..hi = 1..3 mm of path), equals the coefficients where they are
+/// all equal (the B-splines sum to one between the end knots) and leaves the points outside
+/// the window and the still ones where they are.
+#[test]
+fn lateral_offsets_are_smooth_normals_within_the_window() {
+    let mut pts = Vec::new();
+    for i in 0..=100 {
+        pts.push([0.02 * f64::from(i), 0.0, 0.0]);
+    }
+    for i in 1..=100 {
+        pts.push([2.0, 0.02 * f64::from(i), 0.0]);
+    }
+    let sigma: Vec<f64> = (0..pts.len()).map(|k| 0.02 * k as f64).collect();
+    let spot = CornerSpot {
+        k: 100,
+        d_in: [1.0, 0.0, 0.0],
+        d_out: [0.0, 1.0, 0.0],
+        inside: [-1.0 / 2f64.sqrt(), 1.0 / 2f64.sqrt(), 0.0],
+        outside: true,
+        turn_rad: std::f64::consts::FRAC_PI_2,
+        cap_mm: 0.5,
+        cap_lead_mm: 0.5,
+        feed_mm_min: 2000.0,
+        sigma: 2.0,
+        lo: 1.0,
+        hi: 3.0,
+        v_junction: 5.0,
+        line: 2,
+    };
+    let still = |k: usize| k == 120;
+    let wins = lateral::windows(&pts, &sigma, std::slice::from_ref(&spot), &still);
+    let w = &wins[0];
+    assert!(w.knots >= 10, "{} knots", w.knots);
+    assert!(!w.points.contains(&120) && w.points.contains(&90) && !w.points.contains(&40));
+    for (i, &k) in w.points.iter().enumerate() {
+        let n = w.normals[i];
+        let a = pts[k - 1];
+        let b = pts[k + 1];
+        let t = sub(b, a);
+        let dot = n[0] * t[0] + n[1] * t[1] + n[2] * t[2];
+        assert!(dot.abs() < 1e-9 && n[2] == 0.0 && (norm(n) - 1.0).abs() < 1e-12);
+    }
+    let at = |k: usize| {
+        w.weights[w.points.iter().position(|&j| j == k).unwrap()]
+            .iter()
+            .sum::<f64>()
+    };
+    assert!(at(50) < 1e-12 && at(150) < 1e-12, "{} {}", at(50), at(150));
+    assert!((at(80) - 1.0).abs() < 1e-9, "{}", at(80));
+    let theta = vec![vec![0.01; w.knots]];
+    let moved = lateral::apply(&pts, &wins, &theta);
+    assert!((norm(sub(moved[80], pts[80])) - 0.01).abs() < 1e-4);
+    for k in [0, 40, 120, 170, 200] {
+        assert_eq!(moved[k], pts[k], "point {k}");
+    }
+}
