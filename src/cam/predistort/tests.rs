@@ -399,3 +399,30 @@ fn hinted_feet_keep_to_the_pass_ahead_where_the_path_retraces_itself() {
     );
     assert!(hinted <= orig.report.max + 1e-3, "{hinted} mm");
 }
+
+/// A 90° outside corner from +X to +Y (F 2000, junction speed 5 mm/s, source line 2) at
+/// point `k` and path parameter `sigma` (mm), judged on `lo..hi` (mm), with braking lead cap
+/// `cap_lead_mm`: the corner of the stages' unit tests.
+pub(super) fn right_angle_spot(
+    k: usize,
+    sigma: f64,
+    (lo, hi): (f64, f64),
+    cap_lead_mm: f64,
+) -> corners::CornerSpot {
+    corners::CornerSpot {
+        k,
+        d_in: [1.0, 0.0, 0.0],
+        d_out: [0.0, 1.0, 0.0],
+        inside: [-1.0 / 2f64.sqrt(), 1.0 / 2f64.sqrt(), 0.0],
+        outside: true,
+        turn_rad: std::f64::consts::FRAC_PI_2,
+        cap_mm: 0.5,
+        cap_lead_mm,
+        feed_mm_min: 2000.0,
+        sigma,
+        lo,
+        hi,
+        v_junction: 5.0,
+        line: 2,
+    }
+}

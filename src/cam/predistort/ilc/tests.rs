@@ -39,22 +39,7 @@ fn corner_run(pad_periods: usize) -> (Reference, Eval, CornerSpot) {
         rms: 0.0,
         max: 0.0,
     };
-    let spot = CornerSpot {
-        k: 0,
-        d_in: [1.0, 0.0, 0.0],
-        d_out: [0.0, 1.0, 0.0],
-        inside: [-1.0 / 2f64.sqrt(), 1.0 / 2f64.sqrt(), 0.0],
-        outside: true,
-        turn_rad: std::f64::consts::FRAC_PI_2,
-        cap_mm: 0.5,
-        cap_lead_mm: 2.0,
-        feed_mm_min: 2000.0,
-        sigma: 10.0,
-        lo: 7.0,
-        hi: 13.0,
-        v_junction: 5.0,
-        line: 2,
-    };
+    let spot = crate::cam::predistort::tests::right_angle_spot(0, 10.0, (7.0, 13.0), 2.0);
     (reference, eval, spot)
 }
 

@@ -99,22 +99,7 @@ fn lateral_offsets_are_smooth_normals_within_the_window() {
         pts.push([2.0, 0.02 * f64::from(i), 0.0]);
     }
     let sigma: Vec<f64> = (0..pts.len()).map(|k| 0.02 * k as f64).collect();
-    let spot = CornerSpot {
-        k: 100,
-        d_in: [1.0, 0.0, 0.0],
-        d_out: [0.0, 1.0, 0.0],
-        inside: [-1.0 / 2f64.sqrt(), 1.0 / 2f64.sqrt(), 0.0],
-        outside: true,
-        turn_rad: std::f64::consts::FRAC_PI_2,
-        cap_mm: 0.5,
-        cap_lead_mm: 0.5,
-        feed_mm_min: 2000.0,
-        sigma: 2.0,
-        lo: 1.0,
-        hi: 3.0,
-        v_junction: 5.0,
-        line: 2,
-    };
+    let spot = crate::cam::predistort::tests::right_angle_spot(100, 2.0, (1.0, 3.0), 0.5);
     let still = |k: usize| k == 120;
     let wins = lateral::windows(&pts, &sigma, std::slice::from_ref(&spot), &still);
     let w = &wins[0];
