@@ -14,6 +14,12 @@ pub(in super::super) fn original_figures(ce: &[f64], actual: &[Vec<f64>]) -> (f6
     (distance_weighted_rms(ce, &tips_of(actual)), max)
 }
 
+/// The goal of the distance-weighted RMS as a fraction of the original's (issue 24's gate).
+const GOAL_RMS: f64 = 0.3;
+
+/// The goal of the max as a fraction of the original's (issue 24's gate).
+const GOAL_MAX: f64 = 0.5;
+
 /// [`search`] on the points `cur` (the run's arrays describe them), and where its answer
 /// takes the program to the duration budget a second search with stages 1–4 held to
 /// [`SECOND_SHARE`] of it, the better answer kept; the run's arrays (and dwells) are restored
@@ -51,30 +57,27 @@ pub(in super::super) fn try_loops(
         return Ok(Some(first));
     };
     second.simulations += first.simulations;
-    // Judged as the loops are against the other stages' answer ([`better`]): the RMS and the
-    // max count alike. (The search's own objective weighs the max less; on the staircase at
-    // F 3000, kv 60, it would take the second answer, 0.39× RMS but 0.61× max, over the
-    // first, 0.46× and 0.43×.)
+    // Judged against the goals ([`GOAL_RMS`], [`GOAL_MAX`]): the answer within the budget
+    // that meets more of them, and between two that meet as many, the one whose figure
+    // farther from its goal is nearer to it. (The sum of the two ratios would keep, on the
+    // staircase at F 2000, kv 45, the first answer, 0.304× RMS / 0.306× max, over the
+    // second, 0.258× / 0.424×, which meets both; at F 3000, kv 60, the first, 0.456× /
+    // 0.433×, meets the max goal and the second, 0.393× / 0.614×, neither.)
     let limit = full_limit(run);
-    let late = |e: &Eval| {
-        if (e.periods as f64) <= limit {
-            0.0
-        } else {
-            f64::INFINITY
-        }
+    let key = |e: &Eval| {
+        let late = if (e.periods as f64) <= limit { 0 } else { 3 };
+        let (r, m) = to_goals(e, orig);
+        (late + u8::from(r > 1.0) + u8::from(m > 1.0), r.max(m))
     };
-    Ok(Some(
-        if balanced(&second.eval, orig) + late(&second.eval)
-            < balanced(&first.eval, orig) + late(&first.eval)
-        {
-            second
-        } else {
-            Loops {
-                simulations: second.simulations,
-                ..first
-            }
-        },
-    ))
+    let (k1, k2) = (key(&first.eval), key(&second.eval));
+    Ok(Some(if k2.0 < k1.0 || (k2.0 == k1.0 && k2.1 < k1.1) {
+        second
+    } else {
+        Loops {
+            simulations: second.simulations,
+            ..first
+        }
+    }))
 }
 
 /// The search's objective of the simulation `e`: the distance-weighted RMS ratio to the
@@ -107,6 +110,16 @@ pub(in super::super) fn better(
     let gouges = super::super::corners::score(&run.reference, spots, &lp.eval);
     let clean = gouges.iter().zip(gouge_cap).all(|(s, cap)| s.gouge <= *cap);
     in_time && clean && balanced(&lp.eval, orig) < balanced(other, orig)
+}
+
+/// The distance-weighted RMS ratio of the simulation `e` to the original's (`orig`, mm) over
+/// [`GOAL_RMS`], and its max ratio over [`GOAL_MAX`] (a goal is met at 1 or below).
+fn to_goals(e: &Eval, orig: (f64, f64)) -> (f64, f64) {
+    let (dw, max) = figures(e);
+    (
+        dw / orig.0.max(1e-12) / GOAL_RMS,
+        max / orig.1.max(1e-12) / GOAL_MAX,
+    )
 }
 
 /// The sum of the distance-weighted RMS and max ratios of the simulation `e` to the
