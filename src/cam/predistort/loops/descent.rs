@@ -69,11 +69,7 @@ pub(super) struct Stage<'a> {
 impl Stage<'_> {
     /// Each corner's residuals on the simulation `e`.
     fn residuals(&self, run: &Run, e: &Eval) -> Vec<DVector<f64>> {
-        let tips = tips_of(&e.actual);
-        self.spots
-            .iter()
-            .map(|s| DVector::from_vec(residuals(&run.reference, s, e, &tips)))
-            .collect()
+        corner_residuals(run, self.spots, e)
     }
 
     /// `wanted` clamped corner by corner in path order, each against the corners before it
@@ -276,4 +272,14 @@ impl Stage<'_> {
         }
         Ok(())
     }
+}
+
+/// Each corner's residuals (module `ilc`: error vectors at equal steps of tool path length
+/// over its window, each times `√Δs`) on the simulation `e`.
+pub(super) fn corner_residuals(run: &Run, spots: &[CornerSpot], e: &Eval) -> Vec<DVector<f64>> {
+    let tips = tips_of(&e.actual);
+    spots
+        .iter()
+        .map(|s| DVector::from_vec(residuals(&run.reference, s, e, &tips)))
+        .collect()
 }

@@ -27,13 +27,13 @@
 
 use nalgebra::{DMatrix, DVector};
 
+use crate::numeric::vec3::cross;
+
 use super::super::Error;
 use super::super::POSITION_DECIMALS;
 use super::super::corners::CornerSpot;
-use super::super::ilc::residuals;
-use super::super::measure::tips_of;
 use super::super::run::{Eval, Run, norm, round_to, sub};
-use super::descent::Best;
+use super::descent::{Best, corner_residuals};
 
 /// Knot spacing of the offsets' B-splines along the points, mm (five loop chords).
 pub const KNOT_MM: f64 = 0.1;
@@ -79,14 +79,7 @@ pub(super) struct Window {
     pub knots: usize,
 }
 
-fn cross(a: [f64; 3], b: [f64; 3]) -> [f64; 3] {
-    [
-        a[1] * b[2] - a[2] * b[1],
-        a[2] * b[0] - a[0] * b[2],
-        a[0] * b[1] - a[1] * b[0],
-    ]
-}
-
+/// `a / |a|`, or `None` where `|a|` is below 1e-12 (a reversal's turn has no plane).
 fn unit(a: [f64; 3]) -> Option<[f64; 3]> {
     let n = norm(a);
     (n > 1e-12).then(|| a.map(|v| v / n))
@@ -183,13 +176,7 @@ pub(super) fn lateral(
         return Ok(());
     }
     let n = spots.len();
-    let resid = |run: &Run, e: &Eval| -> Vec<DVector<f64>> {
-        let tips = tips_of(&e.actual);
-        spots
-            .iter()
-            .map(|s| DVector::from_vec(residuals(&run.reference, s, e, &tips)))
-            .collect()
-    };
+    let resid = |run: &Run, e: &Eval| corner_residuals(run, spots, e);
     let work = std::cell::Cell::new(0usize);
     let sim = |run: &mut Run, pts: &[[f64; 3]]| -> Result<Eval, Error> {
         let e = run.evaluate(pts)?;
