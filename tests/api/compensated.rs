@@ -587,6 +587,11 @@ async fn contour_answer(app: &TestApp, original: &str) -> Value {
     r.json().await.unwrap()
 }
 
+/// The answer's source-line map (one entry per returned line).
+fn source_lines_of(body: &Value) -> Vec<usize> {
+    serde_json::from_value(body["source_lines"].clone()).unwrap()
+}
+
 /// The answer's warnings.
 fn warnings_of(body: &Value) -> Vec<&str> {
     body["warnings"]
@@ -712,6 +717,19 @@ async fn contour_precompensation_at_corners(app: TestApp) {
     let body = contour_answer(&app, original).await;
     let text = body["gcode"].as_str().unwrap();
     let warnings = warnings_of(&body);
+    let opts = ReadOptions::default();
+    let lines = source_lines_of(&body);
+    assert_valid(
+        &app,
+        "circle_corners",
+        original,
+        &opts,
+        false,
+        true,
+        text,
+        &lines,
+    )
+    .await;
 
     let fig = resimulate(&def, original, text);
     println!(
@@ -764,6 +782,19 @@ async fn contour_precompensation_stops_at_inside_corners(app: TestApp) {
     let body = contour_answer(&app, original).await;
     let text = body["gcode"].as_str().unwrap();
     let warnings = warnings_of(&body);
+    let opts = ReadOptions::default();
+    let lines = source_lines_of(&body);
+    assert_valid(
+        &app,
+        "pocket_walls",
+        original,
+        &opts,
+        false,
+        true,
+        text,
+        &lines,
+    )
+    .await;
     let fig = resimulate(&def, original, text);
     println!(
         "contour pre-compensation at inside corners, 10 mm pocket G41 F2000 kv 40: {} (gate <= 1.15x)",
@@ -831,7 +862,21 @@ async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
     }
     original += "M30\n%\n";
     let default = contour_answer(&app, &original).await;
-    let fig = resimulate(&def, &original, default["gcode"].as_str().unwrap());
+    let opts = ReadOptions::default();
+    let text = default["gcode"].as_str().unwrap();
+    let lines = source_lines_of(&default);
+    assert_valid(
+        &app,
+        "staircase",
+        &original,
+        &opts,
+        false,
+        true,
+        text,
+        &lines,
+    )
+    .await;
+    let fig = resimulate(&def, &original, text);
     println!(
         "2 mm staircase F2000 kv 40, max_duration_ratio 1.15 (default): {}",
         fig.summary()
@@ -846,7 +891,20 @@ async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
         .await;
     assert_eq!(r.status(), 200);
     let body: Value = r.json().await.unwrap();
-    let slow = resimulate(&def, &original, body["gcode"].as_str().unwrap());
+    let text = body["gcode"].as_str().unwrap();
+    let lines = source_lines_of(&body);
+    assert_valid(
+        &app,
+        "staircase_1.3",
+        &original,
+        &opts,
+        false,
+        true,
+        text,
+        &lines,
+    )
+    .await;
+    let slow = resimulate(&def, &original, text);
     println!(
         "2 mm staircase F2000 kv 40, max_duration_ratio 1.3: {} (allowed 1.3x)",
         slow.summary()

@@ -100,125 +100,68 @@ fn compensated_programs_are_valid_programs() {
     let machine = Machine::from_json(&json!({"name": "demo cascade", "kinematics": "xyz",
         "axes": {"X": cascade, "Y": cascade, "Z": cascade}}))
     .unwrap();
-    let e = |p: [f64; 3]| map.error_at(p);
     let dir = tempfile::tempdir().unwrap();
+    // Every (program, mode) case, compensated and checked on two threads (each case is
+    // independent; rs274's files are named by the case), reported in order.
+    let cases: Vec<(String, String, ReadOptions, &str)> = programs()
+        .into_iter()
+        .flat_map(|(name, text, g54, (tool, length))| {
+            let mut options = ReadOptions::default();
+            options.work_offsets_mm[0] = Some(g54);
+            options.tool_lengths_mm.insert(tool, length);
+            ["volumetric", "contour", "both"]
+                .map(|mode| (name.clone(), text.clone(), options.clone(), mode))
+        })
+        .collect();
+    let outcomes = crate::on_two_threads(cases.len(), |i| {
+        let (name, text, options, mode) = &cases[i];
+        one_case(
+            name,
+            text,
+            options,
+            mode,
+            &map,
+            &machine,
+            rs.as_deref(),
+            dir.path(),
+        )
+    });
     let (mut answers, mut by_rs274, mut points) = (0, 0, 0);
     let (mut worst, mut worst_rs): ((f64, String), (f64, String)) = Default::default();
     let mut skipped = Vec::new();
     let mut failures = Vec::new();
-    for (name, text, g54, (tool, length)) in programs() {
-        let mut options = ReadOptions::default();
-        options.work_offsets_mm[0] = Some(g54);
-        options.tool_lengths_mm.insert(tool, length);
-        for mode in ["volumetric", "contour", "both"] {
-            let tag = format!("{name}_{mode}");
-            let answer = match mode {
-                "volumetric" => compensate_program(&text, &options, &map, DEFAULT_TOLERANCE_MM)
-                    .map(|c| (c, None)),
-                "contour" => contour_program(
-                    &text,
-                    &options,
-                    &machine,
-                    DEFAULT_PERIOD_S,
-                    DEFAULT_MAX_DURATION_RATIO,
-                )
-                .map(|(c, p)| (c, Some(p))),
-                _ => volumetric_and_contour(
-                    &text,
-                    &options,
-                    &map,
-                    DEFAULT_TOLERANCE_MM,
-                    &machine,
-                    DEFAULT_PERIOD_S,
-                    DEFAULT_MAX_DURATION_RATIO,
-                )
-                .map(|(c, p)| (c, Some(p))),
-            };
-            let (answer, figures) = match answer {
-                Ok((a, p)) => (
-                    a,
-                    p.map(|p| {
-                        format!(
-                            "; cutting lines' contour error {:.2} -> {:.2} µm RMS, {:.1} -> {:.1} \
-                             µm max",
-                            p.original.rms_mm * 1e3,
-                            p.compensated.rms_mm * 1e3,
-                            p.original.max_mm * 1e3,
-                            p.compensated.max_mm * 1e3
-                        )
-                    }),
-                ),
-                Err(err) => {
-                    failures.push(format!("{tag}: the service refused it: {err}"));
-                    continue;
+    for outcome in outcomes {
+        let o = match outcome {
+            Ok(o) => o,
+            Err(failure) => {
+                if !failure.refused {
+                    answers += 1;
                 }
-            };
-            answers += 1;
-            let asked = Asked {
-                error: (mode != "contour").then_some(&e as &dyn Fn([f64; 3]) -> [f64; 3]),
-                contour: mode != "volumetric",
-            };
-            let r = check(
-                &tag,
-                &text,
-                &options,
-                &asked,
-                &answer.gcode,
-                &answer.source_lines,
-                rs.as_deref(),
-                dir.path(),
-            );
-            let c = match r {
-                Ok(c) => c,
-                Err(err) => {
-                    failures.push(format!("{err}\n--- answer:\n{}", answer.gcode));
-                    continue;
-                }
-            };
-            points += c.points;
-            if c.worst_truecut_mm >= worst.0 {
-                worst = (c.worst_truecut_mm, tag.clone());
+                failures.push(failure.text);
+                continue;
             }
-            let rs_text = match &c.worst_rs274_mm {
-                Ok(d) => {
-                    by_rs274 += 1;
-                    if *d >= worst_rs.0 {
-                        worst_rs = (*d, tag.clone());
-                    }
-                    format!("{:.3} µm", d * 1e3)
-                }
-                Err(why) => {
-                    skipped.push(format!("{tag}: {why}"));
-                    "not read".to_string()
-                }
-            };
-            let unnamed: Vec<&String> = answer
-                .warnings
-                .iter()
-                .filter(|w| !w.starts_with("line") && !w.starts_with("tolerance_mm"))
-                .filter(|w| !w.starts_with("stopped after") && !w.starts_with("and "))
-                .collect();
-            if !unnamed.is_empty() {
-                failures.push(format!("{tag}: warnings naming no line: {unnamed:?}"));
-            }
-            println!(
-                "{tag}: {} lines -> {}; {} points; worst |q - (p - e(p))| truecut {:.3} µm, rs274 \
-                 {rs_text}{}{}",
-                text.lines().count(),
-                answer.blocks,
-                c.points,
-                c.worst_truecut_mm * 1e3,
-                if mode == "volumetric" {
-                    String::new()
-                } else {
-                    format!(
-                        "; feed-move ends pre-distorted by up to {:.1} µm",
-                        c.feed_ends_mm * 1e3
-                    )
-                },
-                figures.unwrap_or_default()
-            );
+        };
+        answers += 1;
+        points += o.points;
+        if o.worst_truecut_mm >= worst.0 {
+            worst = (o.worst_truecut_mm, o.tag.clone());
         }
+        match &o.worst_rs274_mm {
+            Ok(d) => {
+                by_rs274 += 1;
+                if *d >= worst_rs.0 {
+                    worst_rs = (*d, o.tag.clone());
+                }
+            }
+            Err(why) => skipped.push(format!("{}: {why}", o.tag)),
+        }
+        if !o.unnamed.is_empty() {
+            failures.push(format!(
+                "{}: warnings naming no line: {:?}",
+                o.tag, o.unnamed
+            ));
+        }
+        println!("{}", o.line);
     }
     println!(
         "{answers} answers ({} programs x 3 modes) re-read by truecut, {by_rs274} by rs274; {points} \
@@ -234,4 +177,137 @@ fn compensated_programs_are_valid_programs() {
     );
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
     assert!(answers >= 3 * (3 + CYCLES.len()));
+}
+
+/// What one checked answer gave (see [`one_case`]).
+struct Outcome {
+    tag: String,
+    points: usize,
+    worst_truecut_mm: f64,
+    worst_rs274_mm: Result<f64, String>,
+    /// Warnings that name no source line.
+    unnamed: Vec<String>,
+    /// The case's report line.
+    line: String,
+}
+
+/// A case that failed: refused by the service, or its answer failed the check.
+struct Failure {
+    refused: bool,
+    text: String,
+}
+
+/// Program `name` (`text`, read with `options`) compensated in `mode` (volumetric, contour
+/// or both) with the map `map` and the contour machine `machine`, its answer checked by
+/// [`check`] (rs274's files in `dir`).
+#[allow(clippy::too_many_arguments)]
+fn one_case(
+    name: &str,
+    text: &str,
+    options: &ReadOptions,
+    mode: &str,
+    map: &truecut::volumetric::VolumetricMap,
+    machine: &Machine,
+    rs: Option<&std::path::Path>,
+    dir: &std::path::Path,
+) -> Result<Outcome, Failure> {
+    let e = |p: [f64; 3]| map.error_at(p);
+    let tag = format!("{name}_{mode}");
+    let answer = match mode {
+        "volumetric" => {
+            compensate_program(text, options, map, DEFAULT_TOLERANCE_MM).map(|c| (c, None))
+        }
+        "contour" => contour_program(
+            text,
+            options,
+            machine,
+            DEFAULT_PERIOD_S,
+            DEFAULT_MAX_DURATION_RATIO,
+        )
+        .map(|(c, p)| (c, Some(p))),
+        _ => volumetric_and_contour(
+            text,
+            options,
+            map,
+            DEFAULT_TOLERANCE_MM,
+            machine,
+            DEFAULT_PERIOD_S,
+            DEFAULT_MAX_DURATION_RATIO,
+        )
+        .map(|(c, p)| (c, Some(p))),
+    };
+    let (answer, figures) = match answer {
+        Ok((a, p)) => (
+            a,
+            p.map(|p| {
+                format!(
+                    "; cutting lines' contour error {:.2} -> {:.2} µm RMS, {:.1} -> {:.1} µm max",
+                    p.original.rms_mm * 1e3,
+                    p.compensated.rms_mm * 1e3,
+                    p.original.max_mm * 1e3,
+                    p.compensated.max_mm * 1e3
+                )
+            }),
+        ),
+        Err(err) => {
+            return Err(Failure {
+                refused: true,
+                text: format!("{tag}: the service refused it: {err}"),
+            });
+        }
+    };
+    let asked = Asked {
+        error: (mode != "contour").then_some(&e as &dyn Fn([f64; 3]) -> [f64; 3]),
+        contour: mode != "volumetric",
+    };
+    let c = check(
+        &tag,
+        text,
+        options,
+        &asked,
+        &answer.gcode,
+        &answer.source_lines,
+        rs,
+        dir,
+    )
+    .map_err(|err| Failure {
+        refused: false,
+        text: format!("{err}\n--- answer:\n{}", answer.gcode),
+    })?;
+    let rs_text = match &c.worst_rs274_mm {
+        Ok(d) => format!("{:.3} µm", d * 1e3),
+        Err(_) => "not read".to_string(),
+    };
+    let unnamed: Vec<String> = answer
+        .warnings
+        .iter()
+        .filter(|w| !w.starts_with("line") && !w.starts_with("tolerance_mm"))
+        .filter(|w| !w.starts_with("stopped after") && !w.starts_with("and "))
+        .cloned()
+        .collect();
+    let line = format!(
+        "{tag}: {} lines -> {}; {} points; worst |q - (p - e(p))| truecut {:.3} µm, rs274 \
+         {rs_text}{}{}",
+        text.lines().count(),
+        answer.blocks,
+        c.points,
+        c.worst_truecut_mm * 1e3,
+        if mode == "volumetric" {
+            String::new()
+        } else {
+            format!(
+                "; feed-move ends pre-distorted by up to {:.1} µm",
+                c.feed_ends_mm * 1e3
+            )
+        },
+        figures.unwrap_or_default()
+    );
+    Ok(Outcome {
+        tag,
+        points: c.points,
+        worst_truecut_mm: c.worst_truecut_mm,
+        worst_rs274_mm: c.worst_rs274_mm,
+        unnamed,
+        line,
+    })
 }

@@ -422,7 +422,7 @@ pub fn check(
         (Some(rs), None) => {
             let file = dir.join(format!("{name}.ngc"));
             std::fs::write(&file, numbered(answer)).map_err(|e| e.to_string())?;
-            let tools = dir.join("zero.tbl");
+            let tools = dir.join(format!("{name}.tbl"));
             let table: String = (1..=99).map(|t| format!("T{t} P{t} Z0 D0 ;\n")).collect();
             std::fs::write(&tools, table).map_err(|e| e.to_string())?;
             let moves = rs274::run_with_tools(rs, &file, Some(&tools))
