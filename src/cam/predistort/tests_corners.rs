@@ -296,10 +296,13 @@ fn short_segments_improve() {
     );
 }
 
-/// The 2 mm staircase at the slow end of issue 24's gains (kv 30), F 2000.
+/// The 2 mm staircase at the slow end of issue 24's gains (kv 30), F 2000 and F 3000. At
+/// F 3000 the searches that weigh the max at 0.3 end at 0.321× RMS / 0.308× max; those that
+/// weigh it at 0.1, run because of that, meet both goals (module `loops::choose`).
 #[test]
 fn short_segments_on_slow_axes() {
     check_corner_goals("2 mm staircase F2000", 30.0, &staircase(2000.0), None);
+    check_corner_goals("2 mm staircase F3000", 30.0, &staircase(3000.0), None);
 }
 
 /// The 2 mm staircase on stiffer axes, where the loops take the program to its duration
@@ -314,19 +317,11 @@ fn short_segments_on_stiff_axes() {
     check_corner_goals("2 mm staircase F3000", 45.0, &staircase(3000.0), None);
 }
 
-/// Where the gate is not met: the 2 mm staircase at F 3000 on kv 30 (0.321×) and kv 60
-/// (0.456×) within 1.15× the time (the time budget binds: the answers end at 1.145–1.150×).
-/// It must still at least halve the error.
+/// Where the gate is not met: the 2 mm staircase at F 3000 on kv 60 (0.456× RMS) within
+/// 1.15× the time (the time budget binds: the answer ends at 1.145×). It must still at least
+/// halve the error.
 #[test]
 fn short_segments_on_stiff_axes_halve_the_error() {
-    check_corners(
-        "2 mm staircase F3000",
-        30.0,
-        &staircase(3000.0),
-        None,
-        1.15,
-        0.5,
-    );
     let out = check_corners(
         "2 mm staircase F3000",
         60.0,

@@ -69,6 +69,10 @@ pub const LOOP_WORK_PERIODS: usize = 4_000_000;
 /// Weight of the max ratio in the search's objective (the distance-weighted RMS ratio has 1).
 const MAX_WEIGHT: f64 = 0.3;
 
+/// Weight of the max ratio in the searches run again where the answer misses the RMS goal
+/// but meets the max goal (module `choose`): max traded for RMS.
+const LOW_MAX_WEIGHT: f64 = 0.1;
+
 /// Largest turn between two chords (degrees) within the stretch a loop may replace.
 const SMOOTH_TURN_DEG: f64 = 10.0;
 
@@ -317,7 +321,7 @@ fn search(
     pts0: &[[f64; 3]],
     spots: &[CornerSpot],
     orig: (f64, f64),
-    share: f64,
+    (share, max_weight): (f64, f64),
 ) -> Result<Option<Loops>, Error> {
     if spots.is_empty() || spots.iter().any(|s| !s.outside) {
         return Ok(None);
@@ -404,8 +408,8 @@ fn search(
         work.set(work.get() + e.actual[0].len());
         simulations.set(simulations.get() + 1);
     };
-    let score = |run: &Run, e: &Eval| objective(run, e, orig, limit);
-    let score_full = |run: &Run, e: &Eval| objective(run, e, orig, full_limit(run));
+    let score = |run: &Run, e: &Eval| objective(run, e, orig, limit, max_weight);
+    let score_full = |run: &Run, e: &Eval| objective(run, e, orig, full_limit(run), max_weight);
     let eval = |run: &mut Run, params: &[[f64; 6]]| -> Result<Option<(f64, Arrays, Eval)>, Error> {
         if spent() {
             return Ok(None);
