@@ -592,6 +592,15 @@ fn source_lines_of(body: &Value) -> Vec<usize> {
     serde_json::from_value(body["source_lines"].clone()).unwrap()
 }
 
+/// [`assert_valid`] on a contour answer `body` (JSON) of `original`, read with the default
+/// options.
+async fn assert_contour_valid(app: &TestApp, tag: &str, original: &str, body: &Value) {
+    let text = body["gcode"].as_str().unwrap();
+    let lines = source_lines_of(body);
+    let opts = ReadOptions::default();
+    assert_valid(app, tag, original, &opts, false, true, text, &lines).await;
+}
+
 /// The answer's warnings.
 fn warnings_of(body: &Value) -> Vec<&str> {
     body["warnings"]
@@ -717,19 +726,7 @@ async fn contour_precompensation_at_corners(app: TestApp) {
     let body = contour_answer(&app, original).await;
     let text = body["gcode"].as_str().unwrap();
     let warnings = warnings_of(&body);
-    let opts = ReadOptions::default();
-    let lines = source_lines_of(&body);
-    assert_valid(
-        &app,
-        "circle_corners",
-        original,
-        &opts,
-        false,
-        true,
-        text,
-        &lines,
-    )
-    .await;
+    assert_contour_valid(&app, "circle_corners", original, &body).await;
 
     let fig = resimulate(&def, original, text);
     println!(
@@ -782,19 +779,7 @@ async fn contour_precompensation_stops_at_inside_corners(app: TestApp) {
     let body = contour_answer(&app, original).await;
     let text = body["gcode"].as_str().unwrap();
     let warnings = warnings_of(&body);
-    let opts = ReadOptions::default();
-    let lines = source_lines_of(&body);
-    assert_valid(
-        &app,
-        "pocket_walls",
-        original,
-        &opts,
-        false,
-        true,
-        text,
-        &lines,
-    )
-    .await;
+    assert_contour_valid(&app, "pocket_walls", original, &body).await;
     let fig = resimulate(&def, original, text);
     println!(
         "contour pre-compensation at inside corners, 10 mm pocket G41 F2000 kv 40: {} (gate <= 1.15x)",
@@ -862,20 +847,8 @@ async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
     }
     original += "M30\n%\n";
     let default = contour_answer(&app, &original).await;
-    let opts = ReadOptions::default();
+    assert_contour_valid(&app, "staircase", &original, &default).await;
     let text = default["gcode"].as_str().unwrap();
-    let lines = source_lines_of(&default);
-    assert_valid(
-        &app,
-        "staircase",
-        &original,
-        &opts,
-        false,
-        true,
-        text,
-        &lines,
-    )
-    .await;
     let fig = resimulate(&def, &original, text);
     println!(
         "2 mm staircase F2000 kv 40, max_duration_ratio 1.15 (default): {}",
@@ -891,19 +864,8 @@ async fn contour_precompensation_trades_time_for_close_corners(app: TestApp) {
         .await;
     assert_eq!(r.status(), 200);
     let body: Value = r.json().await.unwrap();
+    assert_contour_valid(&app, "staircase_1.3", &original, &body).await;
     let text = body["gcode"].as_str().unwrap();
-    let lines = source_lines_of(&body);
-    assert_valid(
-        &app,
-        "staircase_1.3",
-        &original,
-        &opts,
-        false,
-        true,
-        text,
-        &lines,
-    )
-    .await;
     let slow = resimulate(&def, &original, text);
     println!(
         "2 mm staircase F2000 kv 40, max_duration_ratio 1.3: {} (allowed 1.3x)",
