@@ -128,7 +128,7 @@ pub(in super::super) fn better(
     gouge_cap: &[f64],
     orig: (f64, f64),
 ) -> bool {
-    let in_time = lp.eval.periods as f64 <= (1.0 + run.time_budget) * run.orig_periods as f64;
+    let in_time = lp.eval.periods as f64 <= full_limit(run);
     let gouges = super::super::corners::score(&run.reference, spots, &lp.eval);
     let clean = gouges.iter().zip(gouge_cap).all(|(s, cap)| s.gouge <= *cap);
     in_time && clean && balanced(&lp.eval, orig) < balanced(other, orig)
