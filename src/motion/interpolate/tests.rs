@@ -205,3 +205,100 @@ fn short_chords_of_a_small_radius_keep_the_acceleration_limit() {
         "{v_circle} mm/s"
     );
 }
+
+/// A straight line split into collinear pieces is the same line: the look-ahead carries the
+/// acceleration across the junctions (`chain_units`), so 1,000 blocks of 20 µm plan exactly
+/// as one 20 mm block (before, each block restarted its ramp from zero acceleration: the
+/// split line took 1.218 s at 24.7 mm/s peak against 0.446 s at the programmed 50 mm/s).
+/// Each sample still carries the line of the block it lies on.
+#[test]
+fn collinear_pieces_plan_as_the_unsplit_line() {
+    let m = xyz(json!({"max_vel": 500.0, "max_accel": 5000.0, "max_jerk": 100_000.0}));
+    let one = run(&m, "G90 G1 X20 F3000\n");
+    let mut text = String::from("G90 F3000\n");
+    for k in 1..=1000 {
+        text += &format!("G1 X{:.3}\n", k as f64 * 0.02);
+    }
+    let split = run(&m, &text);
+    assert_eq!(split.t.len(), one.t.len(), "periods");
+    let worst = one.axes[0]
+        .iter()
+        .zip(&split.axes[0])
+        .fold(0.0f64, |w, (a, b)| w.max((a - b).abs()));
+    assert!(worst < 1e-9, "split line departs from the line by {worst} mm");
+    assert!(split.corners.is_empty());
+    for (k, x) in split.axes[0].iter().enumerate().skip(1) {
+        // Block on line n (n ≥ 2) ends at X = 0.02·(n − 1).
+        let line = split.line[k] as f64;
+        let (lo, hi) = (0.02 * (line - 2.0), 0.02 * (line - 1.0));
+        assert!(
+            *x >= lo - 1e-9 && *x <= hi + 1e-9,
+            "sample {k} at X {x} on line {line}"
+        );
+    }
+}
+
+/// A CAM post's chords of a large radius run as the arc would: a circle R 25 mm as 0.1 mm
+/// chords (0.23° turns, each junction allowing far more than the feed) at F 3000 from rest
+/// reaches the feed, and the commanded acceleration and jerk stay within the axis limits.
+/// Before the chords were planned as one run, the tool crept through them: each 0.1 mm
+/// block could change the speed by about 1 mm/s.
+#[test]
+fn chords_of_a_large_radius_carry_the_acceleration() {
+    let m = xyz(json!({"max_vel": 500.0, "max_accel": 5000.0, "max_jerk": 100_000.0}));
+    let (r, n) = (25.0f64, 1571usize);
+    let mut text = String::from("G90 F3000\n");
+    for k in 1..=n {
+        let th = std::f64::consts::TAU * k as f64 / n as f64;
+        text += &format!("G1 X{:.6} Y{:.6}\n", r * th.sin(), r - r * th.cos());
+    }
+    let t = run(&m, &text);
+    let (v, a, _) = derivatives(&t, &|_| false);
+    // Jerk along the path (the chords' direction steps make the axes' third differences
+    // spike at every junction, with or without the look-ahead): third difference of the
+    // path length covered.
+    let h = t.period_s;
+    let speed: Vec<f64> = (1..t.t.len())
+        .map(|k| (t.axes[0][k] - t.axes[0][k - 1]).hypot(t.axes[1][k] - t.axes[1][k - 1]) / h)
+        .collect();
+    let j = speed
+        .windows(3)
+        .fold(0.0f64, |m, w| m.max((w[2] - 2.0 * w[1] + w[0]).abs() / (h * h)));
+    let duration = t.t.last().unwrap();
+    println!(
+        "R 25 as 0.1 mm chords at F 3000: peak axis speed {v:.1} mm/s, acceleration {a:.0} mm/s² \
+         (limit 5000), path jerk {j:.0} mm/s³ (limit 100000), {duration:.3} s (path at the feed {:.3} s)",
+        std::f64::consts::TAU * r / 50.0
+    );
+    assert!(v > 49.0 && v <= 50.0 + 1e-6, "peak axis speed {v} mm/s");
+    assert!(a <= 5000.0 * 1.05, "acceleration {a} mm/s²");
+    assert!(j <= 100_000.0 * 1.05, "path jerk {j} mm/s³");
+    assert!(*duration < 1.1 * std::f64::consts::TAU * r / 50.0, "{duration} s");
+}
+
+/// Blocks of different feeds chained by the look-ahead keep each block's own feed: a 20 mm
+/// line whose first half is 0.02 mm blocks at F 6000 and second half 0.02 mm blocks at
+/// F 3000 runs no block above its feed and plans as the same line in two blocks (within a
+/// few periods), the fast half slowing down before the slow half starts.
+#[test]
+fn chained_blocks_keep_their_own_feeds() {
+    let m = xyz(json!({"max_vel": 500.0, "max_accel": 5000.0, "max_jerk": 100_000.0}));
+    let two = run(&m, "G90 G1 X10 F6000\nG1 X20 F3000\n");
+    let mut text = String::from("G90\n");
+    for k in 1..=1000 {
+        let f = if k <= 500 { 6000 } else { 3000 };
+        text += &format!("G1 X{:.3} F{f}\n", k as f64 * 0.02);
+    }
+    let t = run(&m, &text);
+    let h = t.period_s;
+    for k in 1..t.t.len() {
+        let v = (t.axes[0][k] - t.axes[0][k - 1]) / h;
+        let cap = if t.line[k] as usize <= 501 { 100.0 } else { 50.0 };
+        // A sample's step may straddle the junction into the slower block.
+        let cap = if t.axes[0][k - 1] < 10.0 { 100.0f64.max(cap) } else { cap };
+        assert!(v <= cap * (1.0 + 1e-9), "sample {k}: {v} mm/s on line {}", t.line[k]);
+    }
+    let (a, b) = (t.t.len() as i64, two.t.len() as i64);
+    println!("F 6000 / F 3000 halves: {a} periods in 0.02 mm blocks, {b} in two blocks");
+    assert!((a - b).abs() <= 3, "{a} periods against {b}");
+}
