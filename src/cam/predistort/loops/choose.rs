@@ -48,7 +48,7 @@ pub(in super::super) fn try_loops(
     };
     // Where the answer takes the program to its duration budget, the second search; where
     // the better answer then misses the RMS goal and meets the max goal, both again with the
-    // max weighed less (on the staircase at F 3000, kv 30: 0.321× RMS / 0.308× max with
+    // max weighed less (session 18, on the staircase at F 3000, kv 30: 0.321× RMS / 0.308× max with
     // [`MAX_WEIGHT`], 0.273× / 0.345× with [`LOW_MAX_WEIGHT`]; at F 2000, kv 60, the low
     // weight misses the max goal, 0.277× / 0.510×, and the first is kept).
     let mut best: Option<Loops> = None;

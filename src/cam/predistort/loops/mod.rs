@@ -13,7 +13,9 @@
 //! short chords is run at the speed its curvature allows (the interpolator's junction rule
 //! over the path of one period, `√(max_accel·R)`), well above the few mm/s at which the
 //! junction limit lets a sharp 90° turn pass, so the time the braking lag costs at the corner
-//! comes back.
+//! comes back. Between the tight bends, chords that need no slowing are planned by the
+//! interpolator as one S-curve (its look-ahead carries the acceleration across them), so the
+//! tool speeds up again on the legs between two loops.
 //!
 //! The six numbers per corner are found on the exact interpolation and simulation (the same
 //! [`Run::evaluate`] as the other stages), in four stages, and a fifth moves the points:
@@ -35,11 +37,12 @@
 //! spend: its steps bend the loops, and a tighter bend runs slower. The search then runs a
 //! second time with stages 1–4 held to [`SECOND_SHARE`] of the budget, stage 5 given all of
 //! it, and the better of the two answers is kept (module `choose`). On the 2 mm staircase at
-//! F 3000, kv 45, the first ends at 0.365× distance-weighted RMS, the second at 0.188×
-//! (`cargo bench --bench corner_grid`). Where the better answer misses the RMS goal (0.3×)
+//! F 3000, kv 45, the first ended at 0.365× distance-weighted RMS, the second at 0.188×
+//! (`cargo bench --bench corner_grid`, session 17, before the interpolator carried the
+//! acceleration across short blocks). Where the better answer misses the RMS goal (0.3×)
 //! but meets the max goal (0.5×), both run again with the max weighed [`LOW_MAX_WEIGHT`]
-//! instead of [`MAX_WEIGHT`] (the staircase at F 3000, kv 30: 0.321× → 0.273× RMS, max
-//! 0.308× → 0.345×).
+//! instead of [`MAX_WEIGHT`] (the staircase at F 3000, kv 30, in session 18: 0.321× →
+//! 0.273× RMS, max 0.308× → 0.345×).
 //!
 //! The objective is the distance-weighted RMS plus 0.3× the max, each against the original's,
 //! plus a steep penalty on time beyond the duration budget
