@@ -1,8 +1,9 @@
-//! Jerk-limited (S-curve) feed profile along one block's path parameter.
+//! Jerk-limited (S-curve) feed profile along one planning unit's path parameter: a block, or
+//! a chain of straight blocks the interpolator's look-ahead joins (`interpolate::chain`).
 //!
 //! Hand-written (no crate offers a plain-f64 S-curve with closed-form distances): each
 //! speed change is a symmetric jerk-limited ramp that starts and ends at zero acceleration,
-//! so block junctions join with continuous velocity and acceleration.
+//! so units join with continuous velocity and acceleration.
 
 /// One polynomial piece of the path parameter: `s(τ) = s0 + v0 τ + a0 τ²/2 + j τ³/6`
 /// for `τ ∈ [0, dur]`, starting at global time `t0` (s) in block `block`.
@@ -20,7 +21,7 @@ pub struct Piece {
     pub a0: f64,
     /// Constant jerk over the piece, mm/s³.
     pub j: f64,
-    /// Index of the block this piece belongs to.
+    /// Index of the block, or the interpolator's planning unit, this piece belongs to.
     pub block: usize,
 }
 

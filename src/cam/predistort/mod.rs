@@ -226,10 +226,12 @@ pub fn predistort_keeping(
 ///
 /// Run twice where it matters: with the points of the original's speed ramps chosen within
 /// [`CHORD_TOL_MM`] and within [`RAMP_CHORD_TOL_MM`] (the second run only when that gives
-/// other points, i.e. where a ramp runs on an arc). On an arc every G01 point of a ramp
-/// restarts the interpolator's jerk-limited acceleration from zero, so the fine points make
-/// the ramp longer and leave the corner stages less of the time budget; the coarse ones cost
-/// up to that tolerance in chord error. The answer is the run with the lower sum of the two
+/// other points, i.e. where a ramp runs on an arc). Until the interpolator's look-ahead
+/// carried the acceleration across junctions that need no slowing (session 19), every G01
+/// point of a ramp restarted its jerk-limited acceleration from zero, so the fine points made
+/// the ramp longer and left the corner stages less of the time budget; now that holds only
+/// where a chain of points is split (neighbouring points of unequal feeds, one of them at its
+/// feed). The coarse points cost up to that tolerance in chord error. The answer is the run with the lower sum of the two
 /// gate ratios (distance-weighted RMS and max against the original's); `iterations` counts
 /// both runs.
 pub fn predistort_sided(
