@@ -12,8 +12,9 @@ pub(super) struct Unit {
     /// First and last item index (inclusive).
     pub first: usize,
     pub last: usize,
-    /// The merged segment: summed length, the common speed cap, the smallest acceleration
-    /// and jerk caps of its blocks. `None` for a dwell.
+    /// The merged segment: summed length, the largest speed cap of its blocks (a block of
+    /// lower cap is checked by [`over_caps`]), their smallest acceleration and jerk caps.
+    /// `None` for a dwell.
     pub seg: Option<Seg>,
     /// Path length (mm) from the unit's start to the start of each of its items.
     pub starts: Vec<f64>,
