@@ -64,7 +64,7 @@ impl BodyBudget {
     }
 
     /// Bytes a request reserves before its body is read: 0 without a body, with a small
-    /// one or with a body of unknown length (chunked: [`GrowingBody`] reserves as it reads),
+    /// one or with a body of unknown length (chunked: `GrowingBody` reserves as it reads),
     /// else its declared Content-Length.
     fn reservation(&self, req: &Request) -> u64 {
         let bytes = declared_length(req).unwrap_or(0);
@@ -137,7 +137,7 @@ fn declared_length(req: &Request) -> Option<u64> {
 
 /// Middleware: reserves the request's body bytes from the process-wide [`BodyBudget`]
 /// before the body is read (a declared length) or as it is read (a chunked body, see
-/// [`GrowingBody`]), and keeps them until the answer is made (the parsed body lives that
+/// `GrowingBody`), and keeps them until the answer is made (the parsed body lives that
 /// long too). A chunked body that outgrows `--max-body-bytes` or the budget is answered 413,
 /// one that finds no room in time 503 + Retry-After.
 pub async fn body_budget(State(state): State<AppState>, req: Request, next: Next) -> Response {
@@ -170,7 +170,7 @@ pub async fn body_budget(State(state): State<AppState>, req: Request, next: Next
     }
 }
 
-/// What a [`GrowingBody`] shares with its middleware: the room it holds (kept until the
+/// What a `GrowingBody` shares with its middleware: the room it holds (kept until the
 /// answer is made) and why it stopped, if it did.
 #[derive(Default)]
 struct GrowthState {
@@ -202,7 +202,7 @@ struct GrowingBody {
     growth: Growth,
 }
 
-/// The error a [`GrowingBody`] read ends with (the answer is the verdict).
+/// The error a `GrowingBody` read ends with (the answer is the verdict).
 #[derive(Debug, thiserror::Error)]
 #[error("the request body found no room in this server's budget")]
 struct NoRoom;

@@ -51,7 +51,7 @@ pub struct MotionOptions {
     /// `unexplained`).
     pub min_excess_noise: f64,
     /// Largest share of a validation block's gap above the noise that the steps (fitted on
-    /// the main block) may leave for an effect to be named ([`validation_share`]).
+    /// the main block) may leave for an effect to be named (`validation_share`).
     pub max_validation_left: f64,
     /// Weight per main-block sample: 1 where a log sample backs it, 0 where none does (a
     /// time-stamped log on the program's grid, [`crate::gap::align`]); `None`: every sample.

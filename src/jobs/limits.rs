@@ -10,7 +10,7 @@ use super::pool::JobPool;
 
 impl JobPool {
     /// Sets the time limit of every piece of work (`--job-timeout`): a synchronous request's
-    /// work ends [`Error::Stopped`], a job ends `failed` saying so. `None`: no limit.
+    /// work ends `Error::Stopped`, a job ends `failed` saying so. `None`: no limit.
     pub fn set_timeout(&self, limit: Option<Duration>) {
         let ms = limit.map_or(0, |d| {
             u64::try_from(d.as_millis()).unwrap_or(u64::MAX).max(1)

@@ -86,7 +86,7 @@ impl Store {
 
     /// Like [`Store::insert_measurement`], taking the measurement: its arrays are dropped once
     /// encoded, so a large upload holds its BLOBs, not its arrays beside them, while written.
-    /// Writes of more than [`LARGE_WRITE`] bytes go one at a time on this instance and are
+    /// Writes of more than `LARGE_WRITE` bytes go one at a time on this instance and are
     /// encoded only when their turn comes (the database writes one at a time anyway on
     /// SQLite; the driver and SQLite each copy the BLOBs of a bound statement while it waits
     /// for the database's lock).

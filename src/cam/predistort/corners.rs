@@ -67,7 +67,7 @@ pub const GOUGE_LIMIT_MM: f64 = 1e-3;
 /// Fraction of the duration budget (`max_duration_ratio − 1` of the original program's
 /// duration, [`super::PredistortOptions`]) the corner stage may spend, all corners together:
 /// 0.8 (0.12 of the duration at the default ratio 1.15); the corner-window ILC may take the
-/// rest up to [`super::ilc::ILC_SHARE`].
+/// rest up to `super::ilc::ILC_SHARE`.
 pub const SEARCH_SHARE: f64 = 0.8;
 
 /// Arc length (mm) on either side of a corner within which the outward offset counts as a

@@ -224,7 +224,7 @@ impl TimedLog {
     /// end plus [`HOLD_S`]). Gaps are steps between stamps longer than [`GAP_FACTOR`] times the
     /// median step; a grid instant is observed when a log sample lies within half a period of
     /// it, and takes the log linearly interpolated (or, next to a gap, extrapolated by at most
-    /// half a period) from the samples on its side ([`grid::resample`]).
+    /// half a period) from the samples on its side (`grid::resample`).
     /// Reference: the first-order hold of the HTTP contract's command.
     /// Errors ([`Error::Align`]): the log ends before the program starts; more than
     /// [`MAX_GRID_SAMPLES`] grid instants; fewer than [`MIN_OBSERVED`] observed.

@@ -51,7 +51,7 @@ pub fn step_effects(d: &MotionDiagnosis) -> Vec<Effect> {
 /// `p_d` the stored simulation plus `effects` fitted jointly (as the diagnosis' steps, additive,
 /// two backfitting sweeps) to the log resampled on the grid at delay `d` (observed instants
 /// only), read linearly between grid instants; `S` the log samples inside the grid at the first
-/// estimate (the same samples at every delay). Searched on [`REFINE_PERIODS`] periods either
+/// estimate (the same samples at every delay). Searched on `REFINE_PERIODS` periods either
 /// side of the first estimate: 9 delays, then Brent's line search between the best one's
 /// neighbours to 1e-3 of a period.
 /// Reference: profile least squares (the nuisance parameters — the effects' — refitted at each
