@@ -11,6 +11,7 @@
 //! Safety rule: an axis the program has not yet placed absolutely (at the start, or after
 //! G28 without a home) gets no new word in G90; only the words the post wrote are changed.
 
+use super::paths::SubArc;
 use crate::motion::gcode::{LineFrame, WordSpan, word_spans};
 use crate::motion::program::Plane;
 
@@ -25,15 +26,25 @@ pub enum LinePlan {
         /// End point, machine frame, mm.
         end_mm: [f64; 3],
     },
-    /// A G2/G3 line kept as an arc with a new end and centre (machine frame, mm; only the
-    /// plane's two centre components are used). R-form arcs keep their R word.
-    Arc {
-        /// End point, machine frame, mm.
+    /// A rapid (G0): its end is `end_mm` (machine frame, mm) in the axes the source names;
+    /// it gains no axis word (a rapid cuts nothing: an axis it does not name keeps the
+    /// position the lines before it left).
+    Rapid {
+        /// End point, machine frame, mm (only the named axes are used).
         end_mm: [f64; 3],
-        /// Centre, machine frame, mm.
-        centre_mm: [f64; 3],
+    },
+    /// A G2/G3 line kept as arcs: sub-arcs of the same plane and direction, each with its
+    /// end and centre (machine frame, mm; only the plane's two centre components are used).
+    /// The first is written on the source line, the others on new lines after it (no N
+    /// number: an inserted line carries none). R-form arcs write R (negative above 180°).
+    Arcs {
+        /// The sub-arcs in order; the last ends at the block's (compensated) end.
+        pieces: Vec<SubArc>,
         /// Arc plane.
         plane: Plane,
+        /// F word (program units) of each piece under G93 inverse time; `None` keeps the
+        /// source's F.
+        feeds: Option<Vec<f64>>,
     },
     /// The line's motion replaced by G1 moves through `points_mm` (machine frame, mm; the
     /// last is the end). The first point is written on the source line (keeping its N, F,
@@ -105,6 +116,12 @@ pub struct Emitter {
     orig_modal: Option<u32>,
     out_modal: Option<u32>,
     cycle_words: [Option<String>; 2],
+    /// The source's F in force (program units), and the output's.
+    src_feed: Option<f64>,
+    out_feed: Option<f64>,
+    /// How the source writes F: most decimals seen, and a trailing `.` on whole numbers.
+    feed_decimals: usize,
+    feed_dot: bool,
 }
 
 /// Letters of the three linear axes and of their centre words.
@@ -120,6 +137,17 @@ pub fn decimals(inch: bool) -> usize {
 fn round_to(v: f64, d: usize) -> f64 {
     let s = 10f64.powi(d as i32);
     (v * s).round() / s
+}
+
+/// The F word of `f` with `decimals` decimals (and a trailing `.` on a whole number when
+/// `dot`), as a source writes it.
+fn format_feed(f: f64, decimals: usize, dot: bool) -> String {
+    let text = format_number(f, decimals);
+    if decimals == 0 && dot {
+        format!("F{text}.")
+    } else {
+        format!("F{text}")
+    }
 }
 
 /// `v` with `d` decimals, never `-0.000`.
@@ -157,6 +185,10 @@ impl Emitter {
             orig_modal: None,
             out_modal: None,
             cycle_words: [None, None],
+            src_feed: None,
+            out_feed: None,
+            feed_decimals: 0,
+            feed_dot: false,
         }
     }
 
@@ -197,6 +229,14 @@ impl Emitter {
                 named[k] = !dwell;
             }
         }
+        for f in spans.iter().filter(|s| s.letter == 'F') {
+            let text = &raw[f.start + 1..f.end];
+            if let Some((_, frac)) = text.split_once('.') {
+                let digits = frac.chars().take_while(char::is_ascii_digit).count();
+                self.feed_decimals = self.feed_decimals.max(digits);
+                self.feed_dot |= digits == 0;
+            }
+        }
         let mut explicit_motion = false;
         for &g in &gs {
             if MOTION_CODES.contains(&g) {
@@ -234,46 +274,107 @@ impl Emitter {
         let scale = if frame.inch { 25.4 } else { 1.0 };
         let d = decimals(frame.inch);
         let is_points = matches!(plan, LinePlan::Points { .. });
+        // The source's F word on this line, and the F the output must write again because
+        // points before it ran at another feed than the source's in force.
+        let line_feed = info.spans.iter().find(|s| s.letter == 'F').map(|s| s.value);
+        let own_feeds = match &plan {
+            LinePlan::Points { feeds, .. } | LinePlan::Arcs { feeds, .. } => feeds.is_some(),
+            _ => false,
+        };
+        let restore: Vec<String> = match (line_feed, self.src_feed) {
+            (None, Some(src))
+                if info.moves
+                    && !own_feeds
+                    && !frame.inverse_time
+                    && self.orig_modal != Some(0)
+                    && self.out_feed != Some(src) =>
+            {
+                self.out_feed = Some(src);
+                vec![format_feed(src, self.feed_decimals, self.feed_dot)]
+            }
+            _ => Vec::new(),
+        };
+        if let Some(f) = line_feed {
+            self.src_feed = Some(f);
+            if !own_feeds {
+                self.out_feed = Some(f);
+            }
+        }
         match plan {
             LinePlan::Keep => {
-                let text = match self.modal_word(info) {
-                    Some(g) => rewrite(raw, &info.spans, |_| false, &[], Some(&g)),
-                    None => raw.to_string(),
+                let motion = self.modal_word(info);
+                let text = if motion.is_some() || !restore.is_empty() {
+                    rewrite(raw, &info.spans, |_| false, &restore, motion.as_deref())
+                } else {
+                    raw.to_string()
                 };
                 self.push(line, text);
                 self.follow(info, frame);
             }
-            LinePlan::Move { end_mm } => {
-                let words = self.axis_words(end_mm, info.named, frame);
+            LinePlan::Rapid { end_mm } => {
+                let words = self.named_words(end_mm, info.named, frame);
                 let motion = self.modal_word(info);
                 let text = rewrite(raw, &info.spans, is_axis, &words, motion.as_deref());
                 self.push(line, text);
             }
-            LinePlan::Arc {
-                end_mm,
-                centre_mm,
-                plane,
-            } => {
-                let start = self.cmd;
+            LinePlan::Move { end_mm } => {
                 let mut words = self.axis_words(end_mm, info.named, frame);
+                words.extend(restore);
+                let motion = self.modal_word(info);
+                let text = rewrite(raw, &info.spans, is_axis, &words, motion.as_deref());
+                self.push(line, text);
+            }
+            LinePlan::Arcs {
+                pieces,
+                plane,
+                feeds,
+            } => {
                 let r_form = info.spans.iter().any(|s| s.letter == 'R');
-                if !r_form {
+                let inverse = feeds.is_some();
+                let drop =
+                    |s: &WordSpan| is_axis(s) || is_centre(s) || (inverse && s.letter == 'F');
+                let sep = if spaced(raw, &info.spans) { " " } else { "" };
+                for (i, arc) in pieces.iter().enumerate() {
+                    let start = self.cmd;
+                    let named = if i == 0 { info.named } else { [false; 3] };
+                    let mut words = self.axis_words(arc.end_mm, named, frame);
                     let (p0, p1, _) = plane.axes();
-                    let mut ks = [p0, p1];
-                    ks.sort_unstable();
-                    for k in ks {
-                        let v = if frame.absolute_centres {
-                            (centre_mm[k] - frame.shift_mm[k]) / scale
+                    if r_form {
+                        let rho = (start[p0] - arc.centre_mm[p0])
+                            .hypot(start[p1] - arc.centre_mm[p1])
+                            / scale;
+                        let signed = if arc.sweep_rad.abs() > std::f64::consts::PI {
+                            -rho
                         } else {
-                            (centre_mm[k] - start[k]) / scale
+                            rho
                         };
-                        words.push(format!("{}{}", CENTRES[k], format_number(v, d)));
+                        words.push(format!("R{}", format_number(signed, d)));
+                    } else {
+                        let mut ks = [p0, p1];
+                        ks.sort_unstable();
+                        for k in ks {
+                            let v = if frame.absolute_centres {
+                                (arc.centre_mm[k] - frame.shift_mm[k]) / scale
+                            } else {
+                                (arc.centre_mm[k] - start[k]) / scale
+                            };
+                            words.push(format!("{}{}", CENTRES[k], format_number(v, d)));
+                        }
+                    }
+                    if let Some(f) = feeds.as_ref().and_then(|f| f.get(i)) {
+                        words.extend(self.feed_word(*f, true));
+                    }
+                    if i == 0 {
+                        words.extend(restore.iter().cloned());
+                    }
+                    if i == 0 {
+                        let motion = self.modal_word(info);
+                        let text = rewrite(raw, &info.spans, drop, &words, motion.as_deref());
+                        self.push(line, text);
+                    } else {
+                        self.push(line, words.join(sep));
                     }
                 }
-                let drop = |s: &WordSpan| is_axis(s) || (!r_form && is_centre(s));
-                let motion = self.modal_word(info);
-                let text = rewrite(raw, &info.spans, drop, &words, motion.as_deref());
-                self.push(line, text);
             }
             LinePlan::Points {
                 points_mm,
@@ -281,17 +382,19 @@ impl Emitter {
                 dwells_s,
             } => {
                 let g1 = motion_style(raw, &info.spans, 1);
-                let fw = |i: usize| {
+                let always = frame.inverse_time;
+                let fw = |em: &mut Self, i: usize| {
                     feeds
                         .as_ref()
                         .and_then(|f| f.get(i))
-                        .map(|f| format!("F{}", format_number(*f, 4)))
+                        .and_then(|f| em.feed_word(*f, always))
                 };
                 let mut words = match points_mm.first() {
                     Some(&p) => self.axis_words(p, info.named, frame),
                     None => Vec::new(),
                 };
-                words.extend(fw(0));
+                words.extend(fw(self, 0));
+                words.extend(restore);
                 let drop = |s: &WordSpan| {
                     is_axis(s) || is_centre(s) || (feeds.is_some() && s.letter == 'F')
                 };
@@ -310,7 +413,7 @@ impl Emitter {
                 for (i, &p) in points_mm.iter().enumerate().skip(1) {
                     let mut words = self.axis_words(p, [false; 3], frame);
                     if !words.is_empty() {
-                        words.extend(fw(i));
+                        words.extend(fw(self, i));
                         self.push(line, words.join(sep));
                     }
                     stop(self, i);
@@ -348,6 +451,7 @@ impl Emitter {
                 if at_r_after {
                     self.cmd[2] = r * scale + frame.shift_mm[2];
                 }
+                words.extend(restore);
                 let drop = |s: &WordSpan| is_axis(s) || s.letter == 'R';
                 let text = rewrite(raw, &info.spans, drop, &words, None);
                 self.push(line, text);
@@ -398,6 +502,20 @@ impl Emitter {
         words
     }
 
+    /// Axis words for the named axes only (a rapid's, [`LinePlan::Rapid`]), placing them at
+    /// `q` (machine frame, mm); the other axes keep the output's position.
+    fn named_words(&mut self, q: [f64; 3], named: [bool; 3], frame: &LineFrame) -> Vec<String> {
+        let mut target = self.cmd;
+        for k in 0..3 {
+            if named[k] {
+                target[k] = q[k];
+            }
+        }
+        // An unnamed axis keeps the output's position: no word (axis_words writes an unnamed
+        // axis only where its value changes).
+        self.axis_words(target, named, frame)
+    }
+
     /// A line copied unchanged moves the output as it moves the source.
     fn follow(&mut self, info: &LineInfo, frame: &LineFrame) {
         for k in 0..3 {
@@ -413,6 +531,28 @@ impl Emitter {
             let placed = info.named[k] && !relative;
             self.known[k] = frame.known[k] && (self.known[k] || placed);
         }
+    }
+
+    /// The F word of feed `f` (program units) as the source writes F (its decimals, a
+    /// trailing `.` if it writes one), rounded down so that the written feed never exceeds
+    /// `f`; `None` when the output already runs at that feed and `always` is false (G93
+    /// needs F on every feed block).
+    fn feed_word(&mut self, f: f64, always: bool) -> Option<String> {
+        // Inverse time (1/min) keeps three decimals at least: its values are small numbers
+        // whose rounding would change the time of a block by per cents.
+        let d = if always {
+            self.feed_decimals.max(3)
+        } else {
+            self.feed_decimals
+        };
+        let s = 10f64.powi(d as i32);
+        // Round down, but not what is already an exact decimal of the source's precision.
+        let v = ((f * s) + 1e-9).floor() / s;
+        if !always && self.out_feed == Some(v) {
+            return None;
+        }
+        self.out_feed = Some(v);
+        Some(format_feed(v, d, self.feed_dot))
     }
 
     fn push(&mut self, line: usize, text: String) {

@@ -13,10 +13,10 @@ mod contour;
 mod emit;
 mod error;
 mod field;
-mod paths;
+pub(crate) mod paths;
 mod points;
 pub mod predistort;
-mod program;
+pub(crate) mod program;
 #[cfg(test)]
 mod tests;
 
@@ -24,7 +24,7 @@ pub use contour::{MAX_ITERATIONS, contour_program, volumetric_and_contour};
 pub use emit::{Emitter, LineInfo, LinePlan, decimals, format_number, rewrite, rounding_mm};
 pub use error::Error;
 pub use field::ErrorField;
-pub use paths::{CompensatedArc, Shifter, arc_point, arc_points, linear_points};
+pub use paths::{Shifter, SubArc, arc_pieces, arc_point, linear_points, sub_arc};
 pub use points::{CompensatedPoints, compensate_points, points_from_csv, points_to_csv};
 pub use predistort::{
     DEFAULT_MAX_DURATION_RATIO, ErrorStats, MAX_DURATION_RATIO, MaterialSide, PredistortOptions,

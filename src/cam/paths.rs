@@ -1,19 +1,36 @@
 //! Compensated paths of single blocks: the compensated path of a move x(t) is
-//! c(t) = x(t) − e(x(t)); a G1 polyline through points of c follows it within the tolerance
-//! when each piece's chord stays within the tolerance of c at a quarter, half and three
-//! quarters of the piece (bisection until it does). Arcs whose e is constant within the
-//! tolerance stay arcs shifted by the mean error.
+//! c(t) = x(t) − e(x(t)). A straight block becomes straight pieces and an arc becomes
+//! sub-arcs (never chords: a controller runs an arc as an arc, and chords multiply the blocks
+//! and slow the tool on controllers that cap a segment's speed by its length), each within
+//! the tolerance of c.
 //!
-//! The sagitta of a piece of circle is largest at its middle, and the pieces of an arc start
-//! at most 22.5° long, so three checks per piece see the chord error; the variation of a
-//! smooth e over a short piece is dominated by its curvature there, which the same checks see.
+//! Pieces are chosen greedily: from the start of the block, the longest piece that passes
+//! its check (found by bisection on its end parameter), then on from there. For a check that
+//! holds on every part of a piece that passes, greedy gives the fewest pieces; a check is
+//! [`CHECKS`] interior samples of c against the piece (a smooth field's deviation from a
+//! chord is a bump that these equally spaced samples see within a few per cent of its
+//! peak, where the three samples of a quarter-piece check missed the midpoint of a 1.34 mm
+//! semicircle by 1.13 µm).
+//!
+//! A sub-arc runs in the block's plane through the compensated ends of its piece, about the
+//! centre on their perpendicular bisector nearest to the block's centre shifted by −e at the
+//! piece's middle (so its start and end radii are equal, as controllers require), with the
+//! normal axis moving linearly with the angle (a helix, as G2/G3 do).
 
 use super::field::ErrorField;
 use crate::motion::program::{Block, Plane};
 use crate::numeric::vec3::{add, norm, scale, sub};
 
-/// Deepest bisection of one piece (at most 2^14 points per piece).
-const MAX_DEPTH: usize = 14;
+/// Interior samples of a piece compared with it (at k/(CHECKS + 1) of the piece).
+pub const CHECKS: usize = 7;
+
+/// Shortest piece, as a fraction of its block: 2⁻¹⁴ (at most 16,384 pieces a block), where a
+/// field that is not smooth (a map's cell boundary) would otherwise split without end.
+const MIN_PIECE: f64 = 1.0 / 16384.0;
+
+/// Bisection steps of a piece's end parameter: the piece found is within 2⁻²⁰ of the
+/// longest that passes, far below [`MIN_PIECE`].
+const END_STEPS: usize = 20;
 
 /// Evaluates the field, keeping the largest shift applied and the lines whose points fall
 /// outside the field's box.
@@ -56,74 +73,65 @@ impl<'a> Shifter<'a> {
     }
 }
 
-/// Compensated G1 points (machine frame, mm; the last is the compensated end) of the line
-/// from `start` to `end` (mm): one point when e is linear along it within `tol_mm`.
+/// Ends (parameters in (0, 1], the last 1) of the greedy pieces of [0, 1] under `passes`
+/// (module docs); `whole` asks for one piece whatever the check says.
+fn greedy(passes: &dyn Fn(f64, f64) -> bool, first_pieces: usize, whole: bool) -> Vec<f64> {
+    let mut ends = Vec::new();
+    let mut t0 = 0.0;
+    // A block that must stay whole, or that is split at fixed points first (a full circle).
+    let stops: Vec<f64> = (1..=first_pieces)
+        .map(|k| k as f64 / first_pieces as f64)
+        .collect();
+    for &stop in &stops {
+        while t0 < stop {
+            if whole || passes(t0, stop) {
+                ends.push(stop);
+                t0 = stop;
+                continue;
+            }
+            let (mut ok, mut bad) = ((t0 + MIN_PIECE).min(stop), stop);
+            if passes(t0, ok) {
+                for _ in 0..END_STEPS {
+                    let mid = 0.5 * (ok + bad);
+                    if passes(t0, mid) {
+                        ok = mid;
+                    } else {
+                        bad = mid;
+                    }
+                }
+            }
+            ends.push(ok);
+            t0 = ok;
+        }
+    }
+    ends
+}
+
+/// Compensated straight pieces (their ends, machine frame, mm; the last is the compensated
+/// `end`) of the line from `start` to `end` (mm), each within `tol_mm` of c (module docs):
+/// one piece when e is linear along the line within `tol_mm`, or when `whole`.
 pub fn linear_points(
     sh: &mut Shifter<'_>,
     line: usize,
     start: [f64; 3],
     end: [f64; 3],
     tol_mm: f64,
+    whole: bool,
 ) -> Vec<[f64; 3]> {
     let d = sub(end, start);
     let x = |t: f64| add(start, scale(d, t));
-    let c0 = sh.comp(start);
-    let c1 = sh.comp(end);
-    let mut out = Vec::new();
-    piece(sh, &x, (0.0, c0), (1.0, c1), tol_mm, 0, &mut out);
-    written(sh, line, &x, out, end)
-}
-
-/// The written points of the accepted pieces, recording their shifts; the last is the
-/// compensated `end`.
-fn written(
-    sh: &mut Shifter<'_>,
-    line: usize,
-    x: &dyn Fn(f64) -> [f64; 3],
-    out: Vec<(f64, [f64; 3])>,
-    end: [f64; 3],
-) -> Vec<[f64; 3]> {
-    let n = out.len();
-    out.into_iter()
-        .enumerate()
-        .map(|(i, (t, _))| {
-            let p = if i + 1 == n { end } else { x(t) };
-            sh.compensate(line, p)
+    let passes = |t0: f64, t1: f64| {
+        let (c0, c1) = (sh.comp(x(t0)), sh.comp(x(t1)));
+        (1..=CHECKS).all(|k| {
+            let f = k as f64 / (CHECKS + 1) as f64;
+            let chord = add(c0, scale(sub(c1, c0), f));
+            norm(sub(sh.comp(x(t0 + (t1 - t0) * f)), chord)) <= tol_mm
         })
+    };
+    let ends = greedy(&passes, 1, whole);
+    ends.iter()
+        .map(|&t| sh.compensate(line, if t == 1.0 { end } else { x(t) }))
         .collect()
-}
-
-/// Bisection of the piece (t0, c0)–(t1, c1) of the path `x` until its chord is within
-/// `tol` of the compensated path; pushes the end of every accepted piece.
-fn piece(
-    sh: &Shifter<'_>,
-    x: &dyn Fn(f64) -> [f64; 3],
-    (t0, c0): (f64, [f64; 3]),
-    (t1, c1): (f64, [f64; 3]),
-    tol: f64,
-    depth: usize,
-    out: &mut Vec<(f64, [f64; 3])>,
-) {
-    let mut mid = c0;
-    let mut ok = true;
-    for f in [0.5, 0.25, 0.75] {
-        let c = sh.comp(x(t0 + (t1 - t0) * f));
-        if f == 0.5 {
-            mid = c;
-        }
-        let chord = add(c0, scale(sub(c1, c0), f));
-        if norm(sub(c, chord)) > tol {
-            ok = false;
-            break;
-        }
-    }
-    if ok || depth >= MAX_DEPTH {
-        out.push((t1, c1));
-        return;
-    }
-    let tm = 0.5 * (t0 + t1);
-    piece(sh, x, (t0, c0), (tm, mid), tol, depth + 1, out);
-    piece(sh, x, (tm, mid), (t1, c1), tol, depth + 1, out);
 }
 
 /// A point of the arc `block` (plane, centre, sweep) at parameter t in [0, 1]: the angle and
@@ -153,25 +161,80 @@ pub fn arc_point(
     p
 }
 
-/// A compensated arc: kept and shifted, or G1 points.
-#[derive(Clone, Debug, PartialEq)]
-pub enum CompensatedArc {
-    /// e is constant along the arc within the tolerance: the arc shifted by the mean of e
-    /// at its ends.
-    Shifted {
-        /// End point, machine frame, mm.
-        end_mm: [f64; 3],
-        /// Centre, machine frame, mm.
-        centre_mm: [f64; 3],
-    },
-    /// G1 points (machine frame, mm) within the tolerance of the compensated arc.
-    Points(Vec<[f64; 3]>),
+/// One sub-arc of a compensated arc: its end and centre (machine frame, mm; the centre's
+/// normal-axis component is the end's) in the block's plane and turning direction.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SubArc {
+    /// End point, machine frame, mm.
+    pub end_mm: [f64; 3],
+    /// Centre, machine frame, mm.
+    pub centre_mm: [f64; 3],
+    /// Sweep, rad (positive counter-clockwise seen from the plane's normal).
+    pub sweep_rad: f64,
 }
 
-/// The compensated arc `block`: [`CompensatedArc::Shifted`] when e is constant along it within
-/// `tol_mm`, else [`CompensatedArc::Points`] within `tol_mm` of the compensated arc (pieces of
-/// at most 22.5°, bisected).
-pub fn arc_points(
+/// The sub-arc from `a` to `b` (mm) in `plane`, of about `sweep` rad, about the point of the
+/// perpendicular bisector of `ab` nearest to `hint` (mm); `None` when `a` and `b` coincide
+/// in the plane.
+pub fn sub_arc(
+    plane: Plane,
+    a: [f64; 3],
+    b: [f64; 3],
+    hint: [f64; 3],
+    sweep: f64,
+) -> Option<SubArc> {
+    let (p0, p1, _) = plane.axes();
+    let mid = [0.5 * (a[p0] + b[p0]), 0.5 * (a[p1] + b[p1])];
+    let chord = [b[p0] - a[p0], b[p1] - a[p1]];
+    let len = chord[0].hypot(chord[1]);
+    if len < 1e-12 {
+        return None;
+    }
+    // Unit normal of the chord in the plane; the centre is mid + s·normal.
+    let nrm = [-chord[1] / len, chord[0] / len];
+    let s = (hint[p0] - mid[0]) * nrm[0] + (hint[p1] - mid[1]) * nrm[1];
+    let mut centre = b;
+    centre[p0] = mid[0] + s * nrm[0];
+    centre[p1] = mid[1] + s * nrm[1];
+    let ang = |q: [f64; 3]| (q[p1] - centre[p1]).atan2(q[p0] - centre[p0]);
+    let raw = ang(b) - ang(a);
+    let turns = ((sweep - raw) / std::f64::consts::TAU).round();
+    Some(SubArc {
+        end_mm: b,
+        centre_mm: centre,
+        sweep_rad: raw + turns * std::f64::consts::TAU,
+    })
+}
+
+/// Distance (mm) of `q` from the sub-arc `arc` that starts at `a`: in the plane, from its
+/// circle; along the normal axis, from the helix at `q`'s angle.
+fn off_sub_arc(plane: Plane, a: [f64; 3], arc: &SubArc, q: [f64; 3]) -> f64 {
+    let (p0, p1, n) = plane.axes();
+    let c = arc.centre_mm;
+    let rho = (a[p0] - c[p0]).hypot(a[p1] - c[p1]);
+    let radial = (q[p0] - c[p0]).hypot(q[p1] - c[p1]) - rho;
+    let a0 = (a[p1] - c[p1]).atan2(a[p0] - c[p0]);
+    let aq = (q[p1] - c[p1]).atan2(q[p0] - c[p0]);
+    let mut d = aq - a0;
+    // The angle of q along the sub-arc's own turning direction, in [0, |sweep|] when on it.
+    if arc.sweep_rad < 0.0 {
+        d = -d;
+    }
+    let d = d.rem_euclid(std::f64::consts::TAU);
+    let frac = if arc.sweep_rad != 0.0 {
+        (d / arc.sweep_rad.abs()).min(1.0)
+    } else {
+        0.0
+    };
+    let helix = a[n] + (arc.end_mm[n] - a[n]) * frac;
+    radial.hypot(q[n] - helix)
+}
+
+/// The compensated arc `block` as sub-arcs (module docs), each within `tol_mm` of c; one
+/// sub-arc when e is constant (or linear enough) along it, or when `whole` (a full circle:
+/// two).
+#[allow(clippy::too_many_arguments)]
+pub fn arc_pieces(
     sh: &mut Shifter<'_>,
     line: usize,
     block: &Block,
@@ -179,31 +242,38 @@ pub fn arc_points(
     center: [f64; 3],
     sweep_rad: f64,
     tol_mm: f64,
-) -> CompensatedArc {
+    whole: bool,
+) -> Vec<SubArc> {
     let x = |t: f64| arc_point(block, plane, center, sweep_rad, t);
-    let e0 = sh.field.error_at(block.start.xyz);
-    let e1 = sh.field.error_at(block.end.xyz);
-    let mean = scale(add(e0, e1), 0.5);
-    let samples = ((sweep_rad.abs() / (std::f64::consts::PI / 16.0)).ceil() as usize).max(8);
-    let constant = (0..=samples).all(|i| {
-        let e = sh.field.error_at(x(i as f64 / samples as f64));
-        norm(sub(e, mean)) <= tol_mm
-    });
-    if constant {
-        let end = sh.compensate(line, block.end.xyz);
-        return CompensatedArc::Shifted {
+    let fit = |t0: f64, t1: f64| {
+        let (c0, c1) = (sh.comp(x(t0)), sh.comp(x(t1)));
+        let hint = sub(center, sh.field.error_at(x(0.5 * (t0 + t1))));
+        sub_arc(plane, c0, c1, hint, sweep_rad * (t1 - t0)).map(|a| (c0, a))
+    };
+    let passes = |t0: f64, t1: f64| match fit(t0, t1) {
+        Some((c0, arc)) => (1..=CHECKS).all(|k| {
+            let f = k as f64 / (CHECKS + 1) as f64;
+            off_sub_arc(plane, c0, &arc, sh.comp(x(t0 + (t1 - t0) * f))) <= tol_mm
+        }),
+        None => false,
+    };
+    // A piece of less than a full turn has one reading from its ends, centre and direction;
+    // a full circle (or more) starts as equal pieces of less than a turn.
+    let first = (sweep_rad.abs() / std::f64::consts::TAU + 1e-9).floor() as usize + 1;
+    let ends = greedy(&passes, first, whole);
+    let mut out = Vec::with_capacity(ends.len());
+    let mut t0 = 0.0;
+    for &t1 in &ends {
+        let end = sh.compensate(line, if t1 == 1.0 { block.end.xyz } else { x(t1) });
+        let start = sh.comp(x(t0));
+        let hint = sub(center, sh.field.error_at(x(0.5 * (t0 + t1))));
+        let arc = sub_arc(plane, start, end, hint, sweep_rad * (t1 - t0)).unwrap_or(SubArc {
             end_mm: end,
-            centre_mm: sub(center, mean),
-        };
+            centre_mm: hint,
+            sweep_rad: sweep_rad * (t1 - t0),
+        });
+        out.push(arc);
+        t0 = t1;
     }
-    let pieces = ((sweep_rad.abs() / (std::f64::consts::PI / 8.0)).ceil() as usize).max(1);
-    let mut out = Vec::new();
-    let mut prev = (0.0, sh.comp(block.start.xyz));
-    for j in 1..=pieces {
-        let t = j as f64 / pieces as f64;
-        let next = (t, sh.comp(x(t)));
-        piece(sh, &x, prev, next, tol_mm, 0, &mut out);
-        prev = next;
-    }
-    CompensatedArc::Points(written(sh, line, &x, out, block.end.xyz))
+    out
 }

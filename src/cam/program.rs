@@ -20,7 +20,7 @@
 use super::emit::{Emitter, LineInfo, LinePlan, rounding_mm};
 use super::error::Error;
 use super::field::ErrorField;
-use super::paths::{CompensatedArc, Shifter, arc_points, linear_points};
+use super::paths::{Shifter, arc_pieces, linear_points};
 use crate::motion::ReadOptions;
 use crate::motion::gcode::{LineFrame, parse_traced};
 use crate::motion::program::{Block, Feed, Motion};
@@ -112,10 +112,12 @@ pub fn compensate_program(
     let mut shifter = Shifter::new(field);
     let mut em = Emitter::new();
     let mut notes = Notes::default();
+    let mut whole = WholeMoves::default();
     for (idx, raw) in raw_lines.iter().enumerate() {
         let line = idx + 1;
         let info = em.begin(raw);
         let frame = frames.get(idx).filter(|f| f.line == line);
+        let keep_whole = whole.next(&info);
         let plan = match frame {
             Some(frame) => plan_line(
                 line,
@@ -123,7 +125,7 @@ pub fn compensate_program(
                 frame,
                 &by_line[line],
                 &mut shifter,
-                tol,
+                (tol, keep_whole),
                 &mut notes,
             ),
             None => LinePlan::Keep,
@@ -160,6 +162,7 @@ struct Notes {
     incremental_cycles: Vec<usize>,
     holes: Vec<usize>,
     split: Vec<usize>,
+    split_arcs: Vec<usize>,
 }
 
 impl Notes {
@@ -192,7 +195,13 @@ impl Notes {
         );
         say(
             &self.split,
-            "split into G1 points: the error varies along the move by more than tolerance_mm",
+            "split into straight pieces: the error varies along the move by more than \
+             tolerance_mm (inserted lines carry no N number)",
+        );
+        say(
+            &self.split_arcs,
+            "split into sub-arcs of the same plane and direction: the error varies along the \
+             arc by more than tolerance_mm (inserted lines carry no N number)",
         );
         say(
             out_of_box,
@@ -202,14 +211,44 @@ impl Notes {
     }
 }
 
-/// The plan of one line the reader read.
+/// Which moves must come back as one block: a move that carries G40, G41 or G42, and the
+/// first move after it (a controller starts or ends its cutter compensation on them, and
+/// checks their lengths against the tool radius; a point inserted before their end moves
+/// the tool centre by up to the radius).
+#[derive(Default)]
+pub(super) struct WholeMoves {
+    /// Moves still to keep whole.
+    pending: usize,
+}
+
+impl WholeMoves {
+    /// Whether the line `info` (read in order) must stay one block.
+    pub(super) fn next(&mut self, info: &LineInfo) -> bool {
+        let comp = info
+            .spans
+            .iter()
+            .any(|s| s.letter == 'G' && matches!((s.value * 10.0).round() as i64, 400 | 410 | 420));
+        if comp {
+            // On a move: this move and the next; alone on its line: the next two.
+            self.pending = 2;
+        }
+        if info.moves && self.pending > 0 {
+            self.pending -= 1;
+            return true;
+        }
+        false
+    }
+}
+
+/// The plan of one line the reader read; `tol.0` is the tolerance (mm), `tol.1` asks for
+/// one block ([`WholeMoves`]).
 fn plan_line(
     line: usize,
     info: &LineInfo,
     frame: &LineFrame,
     blocks: &[&Block],
     shifter: &mut Shifter<'_>,
-    tol: f64,
+    (tol, whole): (f64, bool),
     notes: &mut Notes,
 ) -> LinePlan {
     if info.machine_move {
@@ -265,11 +304,11 @@ fn plan_line(
     let end = block.end.xyz;
     match block.motion {
         Motion::Dwell { .. } => LinePlan::Keep,
-        Motion::Linear if block.feed == Feed::Rapid => LinePlan::Move {
+        Motion::Linear if block.feed == Feed::Rapid => LinePlan::Rapid {
             end_mm: shifter.compensate(line, end),
         },
         Motion::Linear => {
-            let pts = linear_points(shifter, line, block.start.xyz, end, tol);
+            let pts = linear_points(shifter, line, block.start.xyz, end, tol, whole);
             if pts.len() == 1 {
                 LinePlan::Move { end_mm: pts[0] }
             } else {
@@ -286,31 +325,39 @@ fn plan_line(
             plane,
             center,
             sweep_rad,
-        } => match arc_points(shifter, line, block, plane, center, sweep_rad, tol) {
-            CompensatedArc::Shifted { end_mm, centre_mm } => LinePlan::Arc {
-                end_mm,
-                centre_mm,
-                plane,
-            },
-            CompensatedArc::Points(pts) => {
-                notes.split.push(line);
-                let feeds = inverse_time_feeds(block, &pts, shifter.comp(block.start.xyz));
-                LinePlan::Points {
-                    points_mm: pts,
-                    feeds,
-                    dwells_s: Vec::new(),
-                }
+        } => {
+            let pieces = arc_pieces(shifter, line, block, plane, center, sweep_rad, tol, whole);
+            if pieces.len() > 1 {
+                notes.split_arcs.push(line);
             }
-        },
+            let shares: Vec<f64> = pieces.iter().map(|a| a.sweep_rad.abs()).collect();
+            let feeds = inverse_time_shares(block, &shares);
+            LinePlan::Arcs {
+                pieces,
+                plane,
+                feeds,
+            }
+        }
     }
 }
 
 /// Under G93 every piece of a split block carries its own F: the block's F (1/min) over the
-/// piece's share of the length.
-fn inverse_time_feeds(block: &Block, pts: &[[f64; 3]], start: [f64; 3]) -> Option<Vec<f64>> {
+/// piece's share of the block (`shares`: any measure of each piece's length).
+fn inverse_time_shares(block: &Block, shares: &[f64]) -> Option<Vec<f64>> {
     let Feed::InverseTime(f) = block.feed else {
         return None;
     };
+    let total: f64 = shares.iter().sum();
+    Some(
+        shares
+            .iter()
+            .map(|l| if *l > 0.0 { f * total / l } else { f })
+            .collect(),
+    )
+}
+
+/// [`inverse_time_shares`] of straight pieces from `start` through `pts` (mm).
+fn inverse_time_feeds(block: &Block, pts: &[[f64; 3]], start: [f64; 3]) -> Option<Vec<f64>> {
     let mut prev = start;
     let lens: Vec<f64> = pts
         .iter()
@@ -320,10 +367,5 @@ fn inverse_time_feeds(block: &Block, pts: &[[f64; 3]], start: [f64; 3]) -> Optio
             l
         })
         .collect();
-    let total: f64 = lens.iter().sum();
-    Some(
-        lens.iter()
-            .map(|l| if *l > 0.0 { f * total / l } else { f })
-            .collect(),
-    )
+    inverse_time_shares(block, &lens)
 }

@@ -78,8 +78,17 @@ fn check(src: &str, opts: &ReadOptions, f: &dyn ErrorField, out: &Compensated, t
         }
         let last = got.last().expect("a motion line is written");
         let want = comp(f, o.end.xyz);
+        // A rapid gains no axis word: only the axes it names are compensated.
+        let rapid = o.feed == crate::motion::gcode::Feed::Rapid;
+        let named: Vec<bool> = (0..3)
+            .map(|k| {
+                word_spans(raw)
+                    .iter()
+                    .any(|s| "XYZ".find(s.letter) == Some(k))
+            })
+            .collect();
         let miss = (0..3)
-            .filter(|&k| placed[k])
+            .filter(|&k| placed[k] && (!rapid || named[k]))
             .map(|k| (last.end.xyz[k] - want[k]).abs())
             .fold(0.0, f64::max);
         assert!(miss <= tol, "line {line}: {:?} vs {want:?}", last.end.xyz);
@@ -87,7 +96,10 @@ fn check(src: &str, opts: &ReadOptions, f: &dyn ErrorField, out: &Compensated, t
         if o.feed == crate::motion::gcode::Feed::Rapid || placed.contains(&false) {
             continue;
         }
-        // Dense samples of the compensated source path, each near the written path.
+        // Dense samples of the compensated source path, each near the written path. A move
+        // after a rapid starts where the rapid left the axes it did not name (uncompensated):
+        // its path may lie that far off at its start, fading linearly to its end.
+        let start_miss = dist(got[0].start.xyz, comp(f, o.start.xyz));
         for i in 0..=200 {
             let t = i as f64 / 200.0;
             let p = match o.motion {
@@ -106,7 +118,11 @@ fn check(src: &str, opts: &ReadOptions, f: &dyn ErrorField, out: &Compensated, t
                 .iter()
                 .map(|g| distance_to_block(g, c))
                 .fold(f64::INFINITY, f64::min);
-            assert!(d <= tol, "line {line} t {t}: {d} mm from the written path");
+            let allowed = tol + (1.0 - t) * start_miss;
+            assert!(
+                d <= allowed,
+                "line {line} t {t}: {d} mm from the written path (allowed {allowed})"
+            );
         }
     }
     worst
@@ -118,9 +134,21 @@ fn distance_to_block(g: &Block, c: [f64; 3]) -> f64 {
             plane,
             center,
             sweep_rad,
-        } => (0..=400)
-            .map(|i| dist(arc_point(g, plane, center, sweep_rad, i as f64 / 400.0), c))
-            .fold(f64::INFINITY, f64::min),
+        } => {
+            // Coarse samples find the nearest part, a fine search around it the distance.
+            let at = |t: f64| dist(arc_point(g, plane, center, sweep_rad, t), c);
+            let n = 400;
+            let k = (0..=n)
+                .min_by(|&a, &b| at(a as f64 / n as f64).total_cmp(&at(b as f64 / n as f64)))
+                .unwrap();
+            let (lo, hi) = (
+                (k as f64 - 1.0).max(0.0) / n as f64,
+                (k as f64 + 1.0).min(n as f64) / n as f64,
+            );
+            (0..=2000)
+                .map(|i| at(lo + (hi - lo) * i as f64 / 2000.0))
+                .fold(f64::INFINITY, f64::min)
+        }
         _ => {
             let (s, e) = (g.start.xyz, g.end.xyz);
             let d = sub(e, s);
@@ -224,7 +252,7 @@ fn varying_error_splits_within_tolerance() {
             miss * 1e3
         );
         assert!(out.blocks > FANUC.lines().count());
-        assert!(out.warnings.iter().any(|w| w.contains("split into G1")));
+        assert!(out.warnings.iter().any(|w| w.contains("split into")));
     }
 }
 
@@ -246,7 +274,8 @@ fn inch_programs_stay_inch_and_all_planes() {
 
 #[test]
 fn compact_style_and_modal_arcs_after_a_split() {
-    // An arc split into G1 points leaves G1 in force: the next modal arc line gets its G2.
+    // An arc split into sub-arcs leaves its G2 in force: the next modal arc line needs no
+    // motion word, and no G1 appears (arcs stay arcs).
     let src = "G0X0Y0Z0\nG1X100.F500\nG2X200.Y0I50.J0\nX300.Y0I50.J0\nM30\n";
     let f = curved();
     let opts = ReadOptions::default();
@@ -256,7 +285,9 @@ fn compact_style_and_modal_arcs_after_a_split() {
     assert!(lines[0].starts_with("G0X"), "{}", out.gcode);
     assert!(!lines[2].contains(' '), "compact style kept: {}", lines[2]);
     let after = out.source_lines.iter().position(|&l| l == 4).unwrap();
-    assert!(lines[after].starts_with('G'), "{}", out.gcode);
+    assert!(lines[after].starts_with('X'), "{}", out.gcode);
+    assert_eq!(out.gcode.matches("G1").count(), 1, "{}", out.gcode);
+    assert!(out.source_lines.iter().filter(|&&l| l == 3).count() > 1);
 }
 
 #[test]
@@ -460,3 +491,4 @@ fn every_cycle_code_is_a_hole() {
 }
 
 mod contour;
+mod invariants;

@@ -151,6 +151,7 @@ fn read(
                 inch: r.m.inch,
                 incremental: r.m.incremental,
                 absolute_centres: r.m.absolute_centres,
+                inverse_time: r.m.inverse_time,
                 shift_mm: [0, 1, 2].map(|k| r.m.shift(k)),
                 pose_mm: r.m.pose.xyz,
                 known: r.m.unknown.map(|u| u.is_none()),

@@ -17,6 +17,8 @@ pub struct LineFrame {
     pub incremental: bool,
     /// G90.1 in force: I/J/K are absolute centre positions in the program frame.
     pub absolute_centres: bool,
+    /// G93 in force: F is inverse time (1/min) and every feed move carries its own F.
+    pub inverse_time: bool,
     /// Work offset + tool length on Z in force, mm: under G90 a programmed point p (mm) is
     /// the machine point p + shift.
     pub shift_mm: [f64; 3],
