@@ -163,8 +163,10 @@
     await runner(button, out, async (out) => {
       const d = await api("POST", `/v1/machines/${enc(m)}/contour-error`, { gcode: code.value, period_s: Number(period.value) });
       const lines = code.value.split(/\r?\n/);
+      const runTime = d.settle ? d.settle.command_end_s : (d.t[d.t.length - 1] || 0);
       out.append(figures([[mm(d.max), "max contour error"], [mm(d.rms), "RMS contour error"], [`${d.t.length}`, "interpolation periods"],
-        [`${(d.t[d.t.length - 1] || 0).toFixed(2)} s`, "run time"]]));
+        [`${runTime.toFixed(2)} s`, "run time"], [d.settle ? `${d.settle.settle_s.toFixed(3)} s` : "–", "servo run-out after the last command"]]));
+      if (d.settle) out.append(h("p", { class: "note" }, `run-out: ${d.settle.note}`));
       for (const w of d.warnings || []) out.append(h("p", { class: "note" }, `reader: ${w}`));
       const plots = h("div", { class: "plots" });
       out.append(plots);
