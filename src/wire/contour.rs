@@ -61,20 +61,20 @@ impl SettleBody {
     fn of(s: &Settle) -> Self {
         let note = if s.settle_s == 0.0 {
             format!(
-                "the tool was within {} um of the program's end point when the command ended \
+                "the tool was within {} µm of the program's end point when the command ended \
                  (t = {:.4} s): nothing simulated past it",
                 SETTLE_TOLERANCE_MM * 1e3,
                 s.command_end_s
             )
         } else {
             format!(
-                "simulated {:.4} s past the command's end (t = {:.4} s) {}: the tool was {:.4} um \
-                 from the program's end point when the command ended, {:.4} um at the last sample",
+                "simulated {:.4} s past the command's end (t = {:.4} s) {}: the tool was {:.4} µm \
+                 from the program's end point when the command ended, {:.4} µm at the last sample",
                 s.settle_s,
                 s.command_end_s,
                 if s.settled {
                     format!(
-                        "until every axis stayed within {} um of the end point",
+                        "until every axis stayed within {} µm of the end point",
                         SETTLE_TOLERANCE_MM * 1e3
                     )
                 } else {
