@@ -9,6 +9,7 @@
 pub mod circle;
 pub mod comp_format;
 pub mod comp_model;
+pub mod comp_reference;
 pub mod comp_table;
 pub mod error;
 pub mod iso230_2;
