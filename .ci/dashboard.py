@@ -4,8 +4,11 @@ Python standard library only).
 
 Starts `truecut serve --demo` on a free port with a fresh data dir, opens `/` and every view,
 and fails when a view does not finish (`<body data-state="ready">`), when the page logs an
-error (console.error, an uncaught exception, a failed request, a CSP violation), or when a
+error (console.error, an uncaught exception, a failed request, a CSP violation), when any
+request the page makes is answered 4xx or 5xx (from the network log, whether or not the page
+logs it: a view shows "none yet" for what does not exist rather than asking for it), or when a
 plot is missing or draws nothing (an <svg class="plot"> without marks, or with NaN in it).
+Prints how many requests each view made and that none failed.
 Saves a full-page screenshot per view as target/dashboard/NN-name.png.
 
 Usage: .ci/dashboard.py [path/to/truecut]   (default target/debug/truecut)
@@ -36,6 +39,9 @@ VIEWS = [
     ("contour", "#/m/demo/contour", 2, 1),
     ("gap-motion", "#/m/demo/gap", 4, 2),
     ("volumetric", "#/m/demo-vmc/volumetric", 6, 0),
+    ("volumetric-none", "#/m/demo/volumetric", 0, 0),
+    ("machine-vmc", "#/m/demo-vmc", 0, 1),
+    ("contour-vmc", "#/m/demo-vmc/contour", 2, 1),
     ("cam", "#/m/demo-vmc/cam", 6, 1),
     ("cam-servo", "#/m/demo/cam", 6, 1),
     ("iso230-2", "#/iso230-2", 3, 1),
@@ -108,6 +114,14 @@ CAM_CHECK = r"""
 """
 # (view, compensation the demo machine gets, largest RMS after / RMS before)
 WANT_CAM = {"cam": ("volumetric + contour", 0.5), "cam-servo": ("contour", 0.5)}
+
+# Text a view must show: the demo machine has no volumetric map, so its views say so instead
+# of asking for one (GET .../volumetric-map would be a 404); the machines table too.
+WANT_TEXT = {
+    "volumetric-none": "none yet",
+    "machine": "Volumetric map: none yet",
+    "machines": "none yet",
+}
 
 
 def free_port():
@@ -205,6 +219,25 @@ class Browser:
         self.events = []
         return out
 
+    def requests(self):
+        """(requests answered, those answered 4xx/5xx as 'METHOD url -> status') seen so far,
+        from the network log; the events stay for errors()."""
+        methods = {}
+        answered, failed = 0, []
+        for e in self.events:
+            m, p = e.get("method"), e.get("params", {})
+            if m == "Network.requestWillBeSent":
+                methods[p.get("requestId")] = p.get("request", {}).get("method", "?")
+            elif m == "Network.responseReceived":
+                r = p.get("response", {})
+                url = r.get("url", "")
+                if url.startswith("data:") or url.startswith("blob:"):
+                    continue
+                answered += 1
+                if r.get("status", 0) >= 400:
+                    failed.append(f"{methods.get(p.get('requestId'), '?')} {url} -> {r.get('status')}")
+        return answered, failed
+
     def pump(self, seconds):
         """Collects events for a while (the page keeps working between our commands)."""
         self.evaluate(f"new Promise((r) => setTimeout(r, {int(seconds * 1000)}))")
@@ -237,6 +270,7 @@ def main():
                                "--data-dir", os.path.join(work, "data")], stdout=log, stderr=log)
     browser = None
     failures = []
+    total_requests = 0
     try:
         for _ in range(300):
             try:
@@ -279,8 +313,9 @@ def main():
                 f.write(base64.b64decode(shot))
             browser.send("Emulation.setDeviceMetricsOverride",
                          {"width": 1500, "height": 1000, "deviceScaleFactor": 1, "mobile": False})
+            answered, failed_requests = browser.requests()
             errs = browser.errors()
-            bad = []
+            bad = [f"request failed: {f}" for f in failed_requests]
             if state != "ready":
                 bad.append(f"state {state!r}" + (f": {problem}" if problem else ""))
             bad += errs
@@ -304,6 +339,10 @@ def main():
                         bad.append(f"download {link['name']}: {link['rows']} rows (want {rows}+), sign stated {link['sign']}")
                     else:
                         print(f"       download {link['name']}: {link['rows']} positions, sign stated")
+            if name in WANT_TEXT:
+                text = browser.evaluate("document.querySelector('main').textContent")
+                if WANT_TEXT[name] not in text:
+                    bad.append(f"the view does not say {WANT_TEXT[name]!r}")
             if name in WANT_CAM:
                 applied, ratio = WANT_CAM[name]
                 cam = browser.evaluate(CAM_CHECK)
@@ -321,7 +360,9 @@ def main():
                     print(f"       {applied}: predicted RMS error {cam['before']} -> {cam['after']} µm; download {cam['name']}, {cam['lines']} lines")
             took = time.time() - started
             summary = ", ".join(f"{p['title']} ({p['marks']} marks)" for p in plots)
-            print(f"{'ok  ' if not bad else 'FAIL'} {name:12s} {route:40s} {took:5.1f} s  {len(plots)} plots  -> {path}")
+            print(f"{'ok  ' if not bad else 'FAIL'} {name:15s} {route:40s} {took:5.1f} s  {len(plots)} plots  "
+                  f"{answered} requests, {len(failed_requests)} failed  -> {path}")
+            total_requests += answered
             if summary:
                 print(f"       {summary}")
             for b in bad:
@@ -340,7 +381,8 @@ def main():
     if failures:
         print(f"dashboard: {len(failures)} failure(s)")
         sys.exit(1)
-    print(f"dashboard: all {len(VIEWS)} views load without errors and every plot draws; screenshots in {OUT}")
+    print(f"dashboard: all {len(VIEWS)} views load without errors, {total_requests} requests none of them "
+          f"4xx/5xx, and every plot draws; screenshots in {OUT}")
 
 
 if __name__ == "__main__":

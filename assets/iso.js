@@ -91,7 +91,7 @@
   async function compensationTable(out, body, query) {
     const c = await api("POST", `/v1/iso230-2/compensation?${query}`, body);
     out.append(h("h3", {}, "Compensation table for the controller"),
-      h("p", { class: "note" }, "Correction = what the controller adds to the commanded position = −(mean deviation), per approach direction; interpolated between positions as LinuxCNC does. E and M after are predicted on these readings (each plus its correction)."),
+      h("p", { class: "note" }, `Correction = what the controller adds to the commanded position = −(mean deviation), per approach direction, counted from the reference ${c.reference_mm} mm (${c.reference_rule === "named" ? "the target named" : "the first target approached forward"}; its forward correction is 0, so the measuring device's zero does not enter); interpolated between positions as LinuxCNC does. E and M after are predicted on these readings (each plus its correction).`),
       figures([[`${um(c.before.E)} → ${um(c.after.E)}`, "E with the table"], [`${um(c.before.M)} → ${um(c.after.M)}`, "M with the table"],
         [String(c.positions.length), c.mode === "model" ? `positions every ${c.spacing_mm} mm (model)` : "positions (the targets)"]]));
     const plots = h("div", { class: "plots" });

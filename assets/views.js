@@ -9,6 +9,14 @@
   const rms = (a) => Math.sqrt(a.reduce((s, v) => s + v * v, 0) / Math.max(1, a.length));
   const maxAbs = (a) => a.reduce((m, v) => Math.max(m, Math.abs(v)), 0);
 
+  /** Whether machine `m` has a volumetric map, from the machine list (which says what each
+   *  machine has), so that no view asks for a map that does not exist. */
+  async function hasVolumetricMap(m) {
+    const { machines } = await api("GET", "/v1/machines");
+    const rec = machines.find((x) => x.id === m);
+    return !!(rec && rec.volumetric_map);
+  }
+
   // ── machines ───────────────────────────────────────────────────────────────────────
   view(/^\/$/, async (main) => {
     const { machines } = await api("GET", "/v1/machines");
@@ -19,7 +27,8 @@
     main.append(table(["machine", "name", "kinematics", "views"], machines.map((m) => [
       link(`#/m/${enc(m.id)}`, m.id), m.name || "", m.kinematics,
       h("span", { class: "links" }, link(`#/m/${enc(m.id)}/cam`, "CAM: compensate a program"), link(`#/m/${enc(m.id)}/contour`, "contour error"),
-        link(`#/m/${enc(m.id)}/gap`, "gap diagnosis (motion)"), link(`#/m/${enc(m.id)}/volumetric`, "volumetric map")),
+        link(`#/m/${enc(m.id)}/gap`, "gap diagnosis (motion)"),
+        m.volumetric_map ? link(`#/m/${enc(m.id)}/volumetric`, "volumetric map") : h("span", { class: "none" }, "volumetric map: none yet")),
     ])));
     main.append(h("h3", {}, "Metrology (no machine needed)"),
       h("p", { class: "links" }, link("#/iso230-2", "ISO 230-2 positioning accuracy"), link("#/iso230-4", "ISO 230-4 circular test")));
@@ -27,11 +36,12 @@
 
   // ── one machine ────────────────────────────────────────────────────────────────────
   view(/^\/m\/([^/]+)$/, async (main, [, m]) => {
-    const [def, { surfaces }] = await Promise.all([
-      api("GET", `/v1/machines/${enc(m)}`), api("GET", `/v1/machines/${enc(m)}/surfaces`)]);
+    const [def, { surfaces }, hasMap] = await Promise.all([
+      api("GET", `/v1/machines/${enc(m)}`), api("GET", `/v1/machines/${enc(m)}/surfaces`), hasVolumetricMap(m)]);
     main.append(h("h2", {}, `Machine ${m}${def.name ? ": " + def.name : ""}`));
     main.append(h("p", { class: "links" }, link(`#/m/${enc(m)}/cam`, "CAM: compensate a program"), link(`#/m/${enc(m)}/contour`, "Contour error of a program"),
-      link(`#/m/${enc(m)}/gap`, "Sim-to-real gap diagnosis (motion)"), link(`#/m/${enc(m)}/volumetric`, "Volumetric map (ISO 230-1 components)")));
+      link(`#/m/${enc(m)}/gap`, "Sim-to-real gap diagnosis (motion)"),
+      hasMap ? link(`#/m/${enc(m)}/volumetric`, "Volumetric map (ISO 230-1 components)") : h("span", { class: "none" }, "Volumetric map: none yet")));
     const axes = def.axes || {};
     main.append(h("h3", {}, `Servo models (kinematics ${def.kinematics})`),
       table(["axis", "kv (1/s)", "kff", "kp_v (1/s)", "ti_v (s)", "tc (s)"], Object.keys(axes).map((a) => [
@@ -163,8 +173,10 @@
     await runner(button, out, async (out) => {
       const d = await api("POST", `/v1/machines/${enc(m)}/contour-error`, { gcode: code.value, period_s: Number(period.value) });
       const lines = code.value.split(/\r?\n/);
+      const runTime = d.settle ? d.settle.command_end_s : (d.t[d.t.length - 1] || 0);
       out.append(figures([[mm(d.max), "max contour error"], [mm(d.rms), "RMS contour error"], [`${d.t.length}`, "interpolation periods"],
-        [`${(d.t[d.t.length - 1] || 0).toFixed(2)} s`, "run time"]]));
+        [`${runTime.toFixed(2)} s`, "run time"], [d.settle ? `${d.settle.settle_s.toFixed(3)} s` : "–", "servo run-out after the last command"]]));
+      if (d.settle) out.append(h("p", { class: "note" }, `run-out: ${d.settle.note}`));
       for (const w of d.warnings || []) out.append(h("p", { class: "note" }, `reader: ${w}`));
       const plots = h("div", { class: "plots" });
       out.append(plots);
@@ -187,6 +199,11 @@
   // ── volumetric map: ISO 230-1 components ────────────────────────────────────────────
   view(/^\/m\/([^/]+)\/volumetric$/, async (main, [, m]) => {
     main.append(h("h2", {}, `Volumetric error map of machine ${m}`));
+    if (!(await hasVolumetricMap(m))) {
+      main.append(h("p", { class: "note" }, "Volumetric map: none yet. Measure the machine's positioning errors at grid nodes and PUT them to " +
+        `/v1/machines/${m}/volumetric-map (body {"nodes": [[x, y, z]], "errors": [[dx, dy, dz]]}); this view then shows the map's ISO 230-1 components.`));
+      return;
+    }
     const d = await api("GET", `/v1/machines/${enc(m)}/volumetric-map?samples=41`);
     main.append(h("p", { class: "note" }, "The 21 ISO 230-1 error parameters of the X-Y-Z chain identified from the measured grid: per axis three translational error motions (positioning along the axis, two straightness) in µm and three rotational (roll, pitch, yaw) in µrad, relative to the axis start; and three squareness errors."));
     const figs = [[d.model || "–", "model"]];

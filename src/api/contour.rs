@@ -1,5 +1,6 @@
 //! Contour error from G-code: `POST /v1/machines/{machine}/contour-error` (openapi.yaml;
-//! Zhang & Chen 2025). The simulation is the motion core's, the answer's shape
+//! Zhang & Chen 2025). The simulation is the motion core's, run on past the command's end
+//! until the servo settles ([`crate::motion::settle`]); the answer's shape
 //! [`crate::wire::contour`]'s (shared with `truecut contour --output`).
 
 use axum::Router;
@@ -17,7 +18,7 @@ use super::lookup::require_machine_def;
 use crate::api::id::PathIds;
 use crate::motion::{
     DEFAULT_PERIOD_S, ReadOptions, check_period, machine_for_simulation, parse_with,
-    predict_program,
+    predict_program_settled,
 };
 use crate::wire::contour::encode_answer_with_warnings;
 
@@ -138,8 +139,8 @@ async fn contour_error(
                 let has = |name: &str| m.axes.iter().any(|a| a.name == name);
                 warnings.extend(program.forget_still_rotary_axes(has("A"), has("C")));
             }
-            predict_program(&m, &program, period_s, MAX_SYNC_PERIODS)
-                .map(|p| encode_answer_with_warnings(&m, &p, &warnings))
+            predict_program_settled(&m, &program, period_s, MAX_SYNC_PERIODS)
+                .map(|(p, settle)| encode_answer_with_warnings(&m, &p, &warnings, Some(&settle)))
         })
         .await??
         .map_err(ApiError::internal)?;

@@ -472,6 +472,7 @@ impl From<metrology::Error> for ApiError {
             E::TooFew { .. }
             | E::Degenerate { .. }
             | E::MissingReadings { .. }
+            | E::CorrectionTooLarge { .. }
             | E::Unresolvable { .. } => ApiError::unprocessable(e.to_string()),
         }
     }

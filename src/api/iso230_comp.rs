@@ -2,8 +2,11 @@
 //! controllers load: `GET /v1/machines/{machine}/axes/{axis}/iso230-2/compensation` (from a
 //! stored run, the latest by default) and `POST /v1/iso230-2/compensation` (from the body of
 //! `POST /v1/iso230-2`, stateless). Query: `format=json|linuxcnc|csv`, `mode=mean|model`,
-//! with `mode=model` `spacing_mm`, `cyclic_pitch_mm` or `fit_cyclic=true`. The table and the
-//! files are the metrology core's ([`crate::metrology::comp_table`], `comp_format`).
+//! with `mode=model` `spacing_mm`, `cyclic_pitch_mm` or `fit_cyclic=true`, and `reference_mm`
+//! (the target the corrections are counted from; default the first target approached in the
+//! positive direction: the first forward reading of a logged run, the lowest target of a
+//! table). The table and the files are the metrology core's
+//! ([`crate::metrology::comp_table`], `comp_format`).
 
 use std::collections::HashMap;
 
@@ -22,10 +25,10 @@ use super::iso230::evaluate_2;
 use super::iso230_runs::check_axis;
 use super::lookup::require_machine;
 use crate::metrology::{
-    self, CompTable, Cyclic, PositionTable, TableSource, build_table, csv_file, evaluate_table,
-    linuxcnc_file,
+    self, CompTable, Cyclic, PositionTable, Reference, TableSource, build_table, csv_file,
+    evaluate_table, linuxcnc_file,
 };
-use crate::wire::iso230::Iso2302Request;
+use crate::wire::iso230::{Iso2302Request, UsedReading};
 use crate::wire::iso230_comp::CompTableAnswer;
 
 /// Routes of this resource.
@@ -52,6 +55,7 @@ struct Ask {
     mode: &'static str,
     source: TableSource,
     run: Option<String>,
+    reference_mm: Option<f64>,
 }
 
 fn parse_number(q: &HashMap<String, String>, field: &str) -> ApiResult<Option<f64>> {
@@ -76,6 +80,7 @@ fn parse_ask(q: &HashMap<String, String>, stored: bool) -> ApiResult<Ask> {
             "spacing_mm",
             "cyclic_pitch_mm",
             "fit_cyclic",
+            "reference_mm",
         ]
     } else {
         &[
@@ -84,6 +89,7 @@ fn parse_ask(q: &HashMap<String, String>, stored: bool) -> ApiResult<Ask> {
             "spacing_mm",
             "cyclic_pitch_mm",
             "fit_cyclic",
+            "reference_mm",
         ]
     };
     if let Some(k) = q.keys().find(|k| !known.contains(&k.as_str())) {
@@ -103,6 +109,14 @@ fn parse_ask(q: &HashMap<String, String>, stored: bool) -> ApiResult<Ask> {
         }
     };
     let spacing_mm = parse_number(q, "spacing_mm")?;
+    let reference_mm = parse_number(q, "reference_mm")?;
+    if let Some(r) = reference_mm {
+        if !r.is_finite() {
+            return Err(ApiError::bad_request(format!(
+                "reference_mm={r} must be a finite number of mm: a target of the run"
+            )));
+        }
+    }
     let pitch = parse_number(q, "cyclic_pitch_mm")?;
     let fit = match q.get("fit_cyclic").map(String::as_str) {
         None | Some("false") => false,
@@ -156,15 +170,27 @@ fn parse_ask(q: &HashMap<String, String>, stored: bool) -> ApiResult<Ask> {
         mode,
         source,
         run,
+        reference_mm,
     })
 }
 
+/// The default reference of a run: the target of its first forward reading when the run was
+/// logged (`used`, in time order), else `None` (the core takes the lowest target).
+fn first_forward(used: Option<&[UsedReading]>) -> Option<f64> {
+    used?
+        .iter()
+        .find(|u| u.direction == "fwd")
+        .map(|u| u.target)
+}
+
 /// Builds the table and its figures before and after on the blocking pool, and answers it
-/// in the asked format; `notes` head the file (provenance), `stem` names it.
+/// in the asked format; `notes` head the file (provenance), `stem` names it; `first_forward`
+/// is the target of a logged run's first forward reading.
 async fn answer(
     state: &AppState,
     ask: Ask,
     table: PositionTable,
+    first_forward: Option<f64>,
     notes: Vec<String>,
     stem: String,
     run: Option<String>,
@@ -173,6 +199,7 @@ async fn answer(
         format,
         mode,
         source,
+        reference_mm,
         ..
     } = ask;
     let built = state
@@ -180,7 +207,12 @@ async fn answer(
         .run(
             move || -> Result<(CompTable, Vec<String>, CompTableAnswer), metrology::Error> {
                 let axis = evaluate_table(&table)?;
-                let comp = build_table(&axis, source)?;
+                let reference = match (reference_mm, first_forward) {
+                    (Some(p), _) => Reference::Named(p),
+                    (None, Some(p)) => Reference::FirstForward(p),
+                    (None, None) => Reference::first_forward_of(&axis),
+                };
+                let comp = build_table(&axis, source, reference)?;
                 let (before, after) = comp.predict(&table)?;
                 let mut notes = notes;
                 notes.push(format!(
@@ -259,6 +291,11 @@ async fn stored_table(
     };
     let input: StoredInput =
         serde_json::from_value(run.input.clone()).map_err(ApiError::internal)?;
+    // A run stored from a log keeps its readings in time order in its answer.
+    let used: Option<Vec<UsedReading>> = run
+        .answer
+        .get("used")
+        .and_then(|u| serde_json::from_value(u.clone()).ok());
     let table = PositionTable {
         targets_mm: input.targets,
         forward_mm: input.forward,
@@ -274,7 +311,8 @@ async fn stored_table(
         run.id
     )];
     let stem = format!("{machine}-{axis}");
-    answer(&state, ask, table, notes, stem, Some(run.id)).await
+    let first = first_forward(used.as_deref());
+    answer(&state, ask, table, first, notes, stem, Some(run.id)).await
 }
 
 async fn posted_table(
@@ -288,9 +326,10 @@ async fn posted_table(
         ));
     }
     let ask = parse_ask(&q, false)?;
-    let (_, table) = evaluate_2(&state, req).await?;
+    let (evaluated, table) = evaluate_2(&state, req).await?;
     let notes = vec![
         "truecut pitch-error compensation table from the ISO 230-2 run sent (not stored)".into(),
     ];
-    answer(&state, ask, table, notes, "iso230-2".into(), None).await
+    let first = first_forward(evaluated.used.as_deref());
+    answer(&state, ask, table, first, notes, "iso230-2".into(), None).await
 }

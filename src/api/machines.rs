@@ -85,7 +85,14 @@ async fn get_machine(
     require_machine(&state, &machine).await.map(ApiJson)
 }
 
+/// Every machine with its definition and what it has (`volumetric_map`: whether
+/// `GET .../volumetric-map` answers a map), so that a client asks only for what exists.
 async fn list_machines(State(state): State<AppState>) -> ApiResult<ApiJson<Value>> {
+    let with_map = state
+        .store
+        .models()
+        .machines_with(crate::api::volumetric::MODEL_KIND)
+        .await?;
     let machines: Vec<Value> = state
         .store
         .list_machines()
@@ -93,6 +100,7 @@ async fn list_machines(State(state): State<AppState>) -> ApiResult<ApiJson<Value
         .into_iter()
         .map(|m| {
             json!({
+                "volumetric_map": with_map.contains(&m.id),
                 "id": m.id,
                 "name": m.definition.get("name"),
                 "kinematics": m.definition.get("kinematics"),

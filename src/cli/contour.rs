@@ -6,7 +6,7 @@ use std::path::PathBuf;
 use anyhow::{Context, bail};
 
 use crate::motion::gcode::{ReadOptions, parse_with};
-use crate::motion::{DEFAULT_PERIOD_S, predict_program};
+use crate::motion::{DEFAULT_PERIOD_S, predict_program_settled};
 
 /// Predict the contour error of a G-code program on a machine (interpolation with RTCP,
 /// servo cascade per axis, distance of the simulated tool tip to the commanded path).
@@ -110,8 +110,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for w in &warnings {
         eprintln!("warning: {}: {w}", args.file.display());
     }
-    let p =
-        predict_program(&machine, &program, args.period_s, args.max_periods).map_err(at_file)?;
+    let (p, settle) = predict_program_settled(&machine, &program, args.period_s, args.max_periods)
+        .map_err(at_file)?;
     let r = &p.report;
     let n = p.commanded.t.len();
     let worst = (0..n).fold(0, |b, i| {
@@ -124,9 +124,23 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     println!(
         "{}: {:.3} s of machining, {n} periods of {} s",
         args.file.display(),
-        p.commanded.t.last().copied().unwrap_or(0.0),
+        settle.command_end_s,
         args.period_s
     );
+    println!(
+        "run-out: the tool was {:.4} mm from the end point when the command ended; simulated \
+         {:.3} s more{}",
+        settle.lag_at_command_end_mm,
+        settle.settle_s,
+        if settle.settled {
+            " until it was within 0.1 um"
+        } else {
+            ""
+        }
+    );
+    if let Some(w) = settle.warning() {
+        eprintln!("warning: {}: {w}", args.file.display());
+    }
     println!(
         "contour error: max {:.4} mm at t = {:.3} s (line {}), rms {:.4} mm",
         r.max, p.commanded.t[worst], p.commanded.line[worst], r.rms
@@ -142,7 +156,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         println!("tool orientation error: max {o:.4} deg");
     }
     if let Some(out) = &args.output {
-        let bytes = crate::wire::contour::encode_answer_with_warnings(&machine, &p, &warnings)?;
+        let bytes = crate::wire::contour::encode_answer_with_warnings(
+            &machine,
+            &p,
+            &warnings,
+            Some(&settle),
+        )?;
         std::fs::write(out, bytes).with_context(|| format!("writing {}", out.display()))?;
         println!("full answer written to {}", out.display());
     }

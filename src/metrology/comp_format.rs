@@ -32,9 +32,11 @@ fn fixed(x: f64) -> String {
     }
 }
 
-/// The notes every file carries: the sign convention and how the controller reads the columns.
+/// The notes every file carries: the reference the corrections are counted from, the sign
+/// convention and how the controller reads the columns.
 fn standard_notes(table: &CompTable) -> Vec<String> {
     let mut notes = vec![
+        format!("reference: {}", table.reference.describe()),
         format!("sign: {SIGN_CONVENTION}"),
         "units: as the run, mm for a linear axis (degrees for a rotary one); they must be the \
          controller's machine units"
@@ -58,16 +60,21 @@ fn standard_notes(table: &CompTable) -> Vec<String> {
                 m.rms_residual_mm * 1e3
             ));
         }
-        _ => notes.push("mode mean: the negated mean deviations at the run's targets".into()),
+        _ => notes.push(
+            "mode mean: the negated mean deviations at the run's targets, less the reference's"
+                .into(),
+        ),
     }
     notes
 }
 
 /// LinuxCNC's joint compensation file, `COMP_FILE_TYPE = 1`: one line per position
 /// `nominal forward_trim reverse_trim` (mm, space-separated, ascending nominals), then a blank
-/// line and `#` notes (`notes` first, then the sign, units, mode and how to load it).
+/// line and `#` notes (`notes` first, then how to load it, the reference, the sign, units and
+/// mode).
 ///
-/// Formula: trim = correction = −(mean deviation); LinuxCNC adds it to the commanded joint
+/// Formula: trim = correction = −(mean deviation − the reference's forward mean deviation,
+/// [`crate::metrology::comp_table::Reference`]); LinuxCNC adds it to the commanded joint
 /// position (the type-0 equivalent would be `nominal, nominal − trim_fwd, nominal − trim_rev`).
 ///
 /// Reference: LinuxCNC INI documentation (`[JOINT_n]COMP_FILE`, `COMP_FILE_TYPE`);
@@ -134,10 +141,12 @@ pub fn linuxcnc_file(table: &CompTable, notes: &[String]) -> Result<String, Erro
     Ok(out)
 }
 
-/// The table as CSV: `#` notes (`notes`, then the sign, units and mode), then the header
-/// `position_mm,forward_correction_mm,backward_correction_mm` and a row per position.
+/// The table as CSV: `#` notes (`notes`, then the reference, the sign, units and mode), then
+/// the header `position_mm,forward_correction_mm,backward_correction_mm` and a row per
+/// position.
 ///
-/// Formula: as [`linuxcnc_file`]: correction = −(mean deviation), added to the command.
+/// Formula: as [`linuxcnc_file`]: correction = −(mean deviation − the reference's forward
+/// mean deviation), added to the command.
 /// Reference: RFC 4180 (comma-separated, one record per line; the `#` lines are a common
 /// extension that pandas (`comment='#'`) and numpy skip).
 /// Known bad cases: none; the table's length is limited by [`crate::metrology::comp_table`].

@@ -14,19 +14,33 @@
 //! backlash_filt`, `src/emc/motion/control.c`) and a type-0 file's actual positions become
 //! trims as `nominal − actual` (`usrmotLoadComp`, `src/emc/motion/usrmotintf.cc`).
 //!
+//! **Reference.** A pitch-error table corrects the lead of the axis, not where its zero is:
+//! the axis' zero is set by homing, and a measuring device is zeroed wherever it was set up
+//! (a laser zeroed at the start point reads every position 37 mm off). So every table is
+//! referenced to a stated target ([`Reference`]): its forward correction is 0 by definition
+//! and every other correction is relative to it, c = −(x̄ − x̄_ref↑). This is how controllers
+//! define their tables (a Fanuc pitch-error table has a compensation point at the reference
+//! position, parameter 3620, whose value the others are counted from; LinuxCNC's trims are
+//! added to a homed joint, so a constant trim moves the whole axis). The device's zero never
+//! enters: a constant in every reading cancels in x̄ − x̄_ref↑. A correction larger than
+//! [`MAX_CORRECTION_MM`] is refused ([`Error::CorrectionTooLarge`]).
+//!
 //! **Applying it** ([`CompTable::correction_mm`], [`CompTable::apply`]) follows LinuxCNC's
 //! `compute_screw_comp`: linear interpolation between neighbouring positions, the end values
 //! held beyond the ends, the forward column while the command moves up and the backward column
 //! while it moves down (at rest the last direction's, i.e. the approach direction's).
 
 use super::comp_model::{Cyclic, PitchModel, fit_model};
+pub use super::comp_reference::Reference;
+use super::comp_reference::reference_target;
 use super::error::Error;
 use super::iso230_2::{Axis230_2, PositionTable, evaluate_table};
 
 /// The sign convention as one sentence, for file headers and answers.
 pub const SIGN_CONVENTION: &str = "correction = what the controller adds to the commanded \
-    position = -(mean deviation), deviation = measured - target (ISO 230-2); forward = \
-    approach or motion in the positive direction, backward = in the negative direction";
+    position = -(mean deviation - the reference target's forward mean deviation), deviation = \
+    measured - target (ISO 230-2); forward = approach or motion in the positive direction, \
+    backward = in the negative direction";
 
 /// Most positions a table may have (any format; LinuxCNC loads fewer, see
 /// [`crate::metrology::comp_format::LINUXCNC_MAX_TRIPLETS`]).
@@ -35,6 +49,16 @@ pub const MAX_TABLE_POSITIONS: usize = 10_001;
 /// Finest spacing of a model table, mm (the files print positions to 1 nm; 1 µm keeps
 /// neighbouring positions apart by far more than that).
 pub const MIN_SPACING_MM: f64 = 0.001;
+
+/// Largest correction a pitch-error table may carry, mm.
+///
+/// A pitch-error table corrects the lead errors of a screw, rack or scale: micrometres to a
+/// few tens of micrometres over a metre (ISO 230-2 E of a machine-tool axis is typically
+/// 5–50 µm). A correction of a millimetre is no lead error: it means an offset (readings
+/// referenced to another zero), readings of another axis, or other units (inch readings of a
+/// mm axis), and loading it would move the axis by that much. 1 mm is twenty times the worst
+/// lead error of a metre of ground screw and a thousandth of a typical axis.
+pub const MAX_CORRECTION_MM: f64 = 1.0;
 
 /// What the table is built from.
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -66,6 +90,8 @@ pub struct CompTable {
     /// Spacing used, mm, for a model table (the last step may be shorter: the table ends at the
     /// run's last target).
     pub spacing_mm: Option<f64>,
+    /// The target the corrections are counted from (its forward correction is 0).
+    pub reference: Reference,
 }
 
 /// The default spacing of a model table for a run over `range_mm`: the smallest of 1, 2, 5 ×
@@ -114,36 +140,74 @@ fn grid(lo: f64, hi: f64, spacing_mm: f64) -> Result<Vec<f64>, Error> {
     Ok(out)
 }
 
-/// Builds the compensation table of an evaluated ISO 230-2 run.
+/// Refuses a table with a correction beyond [`MAX_CORRECTION_MM`], naming the largest.
+fn check_limit(table: &CompTable) -> Result<(), Error> {
+    let mut worst: Option<(f64, &'static str, f64)> = None;
+    for (k, &p) in table.positions_mm.iter().enumerate() {
+        for (dir, c) in [
+            ("forward", table.forward_mm[k]),
+            ("backward", table.backward_mm[k]),
+        ] {
+            let over = c.is_nan() || c.abs() > MAX_CORRECTION_MM;
+            if over && worst.is_none_or(|w| c.abs() > w.2.abs()) {
+                worst = Some((p, dir, c));
+            }
+        }
+    }
+    match worst {
+        None => Ok(()),
+        Some((position_mm, direction, correction_mm)) => Err(Error::CorrectionTooLarge {
+            position_mm,
+            direction,
+            correction_mm,
+            limit_mm: MAX_CORRECTION_MM,
+            reference_mm: table.reference.position_mm(),
+        }),
+    }
+}
+
+/// Builds the compensation table of an evaluated ISO 230-2 run, referenced to `reference`.
 ///
 /// What: per position P the corrections c↑(P), c↓(P) a controller adds to the commanded
-/// position, mm. Formula: [`TableSource::Mean`]: positions = the targets in ascending order,
-/// c↑ = −x̄_i↑, c↓ = −x̄_i↓ (ISO 230-2:2014 §3.9); [`TableSource::Model`]: positions on the
-/// spacing from the first to the last target, c↑(P) = −e(P, ↑), c↓(P) = −e(P, ↓) with e the
-/// fitted [`PitchModel`].
+/// position, mm, counted from the reference target P_r (c↑(P_r) = 0). Formula:
+/// [`TableSource::Mean`]: positions = the targets in ascending order, c↑ = −(x̄_i↑ − x̄_r↑),
+/// c↓ = −(x̄_i↓ − x̄_r↑) (ISO 230-2:2014 §3.9); [`TableSource::Model`]: positions on the
+/// spacing from the first to the last target, c↑(P) = −(e(P, ↑) − e(P_r, ↑)),
+/// c↓(P) = −(e(P, ↓) − e(P_r, ↑)) with e the fitted [`PitchModel`].
 ///
-/// Reference: ISO 230-2:2014 §3.8–3.12; LinuxCNC's screw compensation (module docs).
+/// Reference: ISO 230-2:2014 §3.8–3.12; LinuxCNC's screw compensation and the reference
+/// position of a controller's table (module docs).
+///
+/// Errors: a reference that is not a target ([`Error::Unresolvable`]), a correction beyond
+/// [`MAX_CORRECTION_MM`] ([`Error::CorrectionTooLarge`]), and the model's refusals.
 ///
 /// Known bad cases: the mean table carries each target's noise s_i/√n into the controller
-/// and is linear between targets, so an error shorter than the target spacing is not
-/// corrected (nor is it in any table from the same run); the model table leaves out what its
-/// terms cannot express (see [`fit_model`]).
-pub fn build_table(axis: &Axis230_2, source: TableSource) -> Result<CompTable, Error> {
-    match source {
+/// (and the reference target's into every correction) and is linear between targets, so an
+/// error shorter than the target spacing is not corrected (nor is it in any table from the
+/// same run); the model table leaves out what its terms cannot express (see [`fit_model`]).
+pub fn build_table(
+    axis: &Axis230_2,
+    source: TableSource,
+    reference: Reference,
+) -> Result<CompTable, Error> {
+    let r = reference_target(axis, reference)?;
+    let table = match source {
         TableSource::Mean => {
+            let zero = axis.targets[r].mean_fwd;
             let mut rows: Vec<(f64, f64, f64)> = axis
                 .targets
                 .iter()
-                .map(|t| (t.target_mm, -t.mean_fwd, -t.mean_bwd))
+                .map(|t| (t.target_mm, zero - t.mean_fwd, zero - t.mean_bwd))
                 .collect();
             rows.sort_by(|a, b| a.0.total_cmp(&b.0));
-            Ok(CompTable {
+            CompTable {
                 positions_mm: rows.iter().map(|r| r.0).collect(),
                 forward_mm: rows.iter().map(|r| r.1).collect(),
                 backward_mm: rows.iter().map(|r| r.2).collect(),
                 model: None,
                 spacing_mm: None,
-            })
+                reference,
+            }
         }
         TableSource::Model { cyclic, spacing_mm } => {
             let model = fit_model(axis, cyclic)?;
@@ -155,21 +219,25 @@ pub fn build_table(axis: &Axis230_2, source: TableSource) -> Result<CompTable, E
                 });
             let spacing = spacing_mm.unwrap_or_else(|| default_spacing_mm(hi - lo));
             let positions_mm = grid(lo, hi, spacing)?;
+            let zero = model.deviation_mm(axis.targets[r].target_mm, true);
             let column = |forward: bool| -> Vec<f64> {
                 positions_mm
                     .iter()
-                    .map(|&p| -model.deviation_mm(p, forward))
+                    .map(|&p| zero - model.deviation_mm(p, forward))
                     .collect()
             };
-            Ok(CompTable {
+            CompTable {
                 forward_mm: column(true),
                 backward_mm: column(false),
                 positions_mm,
                 model: Some(model),
                 spacing_mm: Some(spacing),
-            })
+                reference,
+            }
         }
-    }
+    };
+    check_limit(&table)?;
+    Ok(table)
 }
 
 impl CompTable {
@@ -252,4 +320,4 @@ impl CompTable {
 }
 
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;

@@ -89,6 +89,26 @@ pub enum Error {
         /// Why, and what to change, as a sentence.
         reason: String,
     },
+    /// A compensation table would carry a correction no pitch error has: an offset, another
+    /// axis' readings or other units.
+    #[error(
+        "the {direction} correction at {position_mm} mm is {correction_mm:.6} mm (relative to the \
+         reference target {reference_mm} mm); a pitch-error table corrects at most {limit_mm} \
+         mm: a correction that large means the readings carry an offset, belong to another axis \
+         or are in other units. Check the readings, or name another reference_mm"
+    )]
+    CorrectionTooLarge {
+        /// The table position (a target of a mean table), mm.
+        position_mm: f64,
+        /// `forward` or `backward`.
+        direction: &'static str,
+        /// The correction, mm.
+        correction_mm: f64,
+        /// The limit, mm ([`crate::metrology::comp_table::MAX_CORRECTION_MM`]).
+        limit_mm: f64,
+        /// The reference target, mm.
+        reference_mm: f64,
+    },
     /// The points do not define a circle (collinear, coincident, or too few).
     #[error("{field}: the points do not define a circle ({reason})")]
     Degenerate {

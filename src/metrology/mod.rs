@@ -9,6 +9,7 @@
 pub mod circle;
 pub mod comp_format;
 pub mod comp_model;
+pub mod comp_reference;
 pub mod comp_table;
 pub mod error;
 pub mod iso230_2;
@@ -18,7 +19,9 @@ pub mod trace;
 pub use circle::{Circle, fit_circle, fit_circle_kasa};
 pub use comp_format::{LINUXCNC_MAX_TRIPLETS, csv_file, linuxcnc_file};
 pub use comp_model::{Cyclic, CyclicTerm, PitchModel, fit_model};
-pub use comp_table::{CompTable, SIGN_CONVENTION, TableSource, build_table};
+pub use comp_table::{
+    CompTable, MAX_CORRECTION_MM, Reference, SIGN_CONVENTION, TableSource, build_table,
+};
 pub use error::Error;
 pub use iso230_2::{Axis230_2, PositionTable, Target230_2, evaluate_table};
 pub use iso230_4::{Circular230_4, Hysteresis, circular_hysteresis, evaluate_circle};

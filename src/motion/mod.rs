@@ -16,6 +16,7 @@ pub mod profile;
 pub mod program;
 pub mod rk4;
 pub mod servo;
+pub mod settle;
 
 pub use axes::{ServoAxes, check_period, machine_for_simulation, servo_axes, stored_definition};
 pub use contour::{ContourReport, contour_error};
@@ -28,3 +29,6 @@ pub use machine::{AxisLimits, Machine, MachineAxis};
 pub use physical::{PhysicalAxis, StructuralMode};
 pub use predict::{ContourPrediction, predict_contour_error, predict_program, simulate_machine};
 pub use servo::{DiscreteServo, ServoAxis, simulate_axis};
+pub use settle::{
+    MAX_SETTLE_S, SETTLE_TOLERANCE_DEG, SETTLE_TOLERANCE_MM, Settle, predict_program_settled,
+};

@@ -45,6 +45,18 @@ pub enum Rollback {
 }
 
 impl ModelStore {
+    /// The machines that have a machine-level model (no surface) of `kind`, in one query (for
+    /// listing machines with what they have).
+    pub async fn machines_with(&self, kind: &str) -> Result<std::collections::HashSet<String>> {
+        let rows: Vec<String> =
+            sqlx::query_scalar("SELECT machine FROM models WHERE surface = $1 AND kind = $2")
+                .bind(String::new())
+                .bind(kind.to_string())
+                .fetch_all(&self.db)
+                .await?;
+        Ok(rows.into_iter().collect())
+    }
+
     /// The model's kept versions, or `None` if there is no such model.
     pub async fn versions(
         &self,

@@ -95,9 +95,10 @@ pub struct UsedReading {
     pub cycle: usize,
     /// The command's hold this reading answers, `[start, end)` in command samples.
     pub dwell: [usize; 2],
-    /// The settling window: settled samples averaged, `[start, end)` in measured samples.
+    /// The reading window: the stop's settled end (its last settling window before the axis
+    /// moves again), `[start, end)` in measured samples.
     pub samples: [usize; 2],
-    /// The settling window in time, `[start, end)` s (sample × `period_s`).
+    /// The reading window in time, `[start, end)` s (sample × `period_s`).
     #[serde(default)]
     pub window_s: [f64; 2],
     /// The reading, mm.
@@ -111,7 +112,8 @@ pub struct SettlingUsed {
     pub settle_speed_mm_s: f64,
     /// Minimum settled time, s.
     pub min_settled_s: f64,
-    /// Length of the centred window the speed is judged over, s.
+    /// Length of the centred window the speed is judged over, s; a reading averages the last
+    /// such window of its stop.
     pub window_s: f64,
     /// How far a stop may sit from a commanded position to answer it, mm.
     pub match_tolerance_mm: f64,

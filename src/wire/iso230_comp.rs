@@ -72,6 +72,13 @@ pub struct CompTableAnswer {
     pub mode: String,
     /// The sign convention of the corrections.
     pub sign: String,
+    /// The target the corrections are counted from: its forward correction is 0, mm.
+    pub reference_mm: f64,
+    /// How the reference was chosen: `first_forward` (the first target approached in the
+    /// positive direction, the default) or `named` (the query's `reference_mm`).
+    pub reference_rule: String,
+    /// The reference as a sentence (the files' `reference:` note).
+    pub reference: String,
     /// Nominal (commanded) positions, ascending, mm.
     pub positions: Vec<f64>,
     /// Correction the controller adds to the command while approaching in +, mm.
@@ -103,6 +110,9 @@ impl CompTableAnswer {
         CompTableAnswer {
             mode: mode.into(),
             sign: SIGN_CONVENTION.into(),
+            reference_mm: table.reference.position_mm(),
+            reference_rule: table.reference.rule().into(),
+            reference: table.reference.describe(),
             positions: table.positions_mm.clone(),
             forward_correction: table.forward_mm.clone(),
             backward_correction: table.backward_mm.clone(),

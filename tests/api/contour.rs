@@ -346,6 +346,81 @@ async fn bad_requests_are_4xx(app: TestApp) {
 }
 on_both_backends!(bad_requests_are_4xx);
 
+/// The dashboard's demo program on the demo machine (`truecut demo`: kv 30, kff 0.6, PI
+/// velocity loop, 0.5 ms current loop): it ends at X30 Y0 after an F4000 pocket outline.
+const DEMO_PROGRAM: &str = "G21 G90 G17\nG0 X20 Y0 Z0\nG2 X20 Y0 I-20 J0 F3000\nG1 X30 Y0 F4000\n\
+    G1 X30 Y-20\nG1 X-30 Y-20\nG1 X-30 Y20\nG1 X30 Y20\nG1 X30 Y0\nM30\n";
+
+/// Issue 39 item 5: the simulation goes on after the command's last sample until the tool is
+/// within 0.1 µm of the program's end point in every axis, and the answer says how long.
+async fn the_simulation_runs_until_the_servo_settles(app: TestApp) {
+    let servo = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    put_machine(
+        &app,
+        "demo",
+        &json!({"kinematics": "xyz", "axes": {"X": servo, "Y": servo, "Z": servo}}),
+    )
+    .await;
+    let r = contour(&app, "demo", &json!({"gcode": DEMO_PROGRAM})).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    let t: Vec<f64> = serde_json::from_value(b["t"].clone()).unwrap();
+    let actual: Vec<Vec<f64>> = serde_json::from_value(b["actual"].clone()).unwrap();
+    let commanded: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+    let line: Vec<u32> = serde_json::from_value(b["line"].clone()).unwrap();
+    assert!(actual.len() == t.len() && commanded.len() == t.len() && line.len() == t.len());
+    let s = &b["settle"];
+    let (end_s, settle_s) = (
+        s["command_end_s"].as_f64().unwrap(),
+        s["settle_s"].as_f64().unwrap(),
+    );
+    // Where the tool was when the command stopped (the old answer's last row), and now.
+    let at_end = t.iter().position(|&x| (x - end_s).abs() < 1e-9).unwrap();
+    let dist = |i: usize| {
+        (0..3)
+            .map(|k| (actual[i][k] - [30.0, 0.0, 0.0][k]).powi(2))
+            .sum::<f64>()
+            .sqrt()
+    };
+    let last = t.len() - 1;
+    println!(
+        "contour-error run-out on the demo machine: tool {:.1} um from the end point when the \
+         command ended (t = {end_s:.3} s), {:.3} um after {settle_s:.3} s more",
+        dist(at_end) * 1e3,
+        dist(last) * 1e3
+    );
+    assert!(s["settled"].as_bool().unwrap(), "{s}");
+    assert!(dist(at_end) > 0.05, "{}", dist(at_end));
+    assert!((s["lag_at_command_end_mm"].as_f64().unwrap() - dist(at_end)).abs() < 1e-12);
+    assert!(
+        settle_s > 0.05 && (t[last] - end_s - settle_s).abs() < 1e-9,
+        "{s}"
+    );
+    for k in 0..3 {
+        assert!(
+            (actual[last][k] - commanded[last][k]).abs() <= 1e-4,
+            "{:?}",
+            actual[last]
+        );
+        assert_eq!(commanded[last][k], commanded[at_end][k]);
+    }
+    // One period earlier some axis was still outside the band.
+    assert!((0..3).any(|k| (actual[last - 1][k] - commanded[last][k]).abs() > 1e-4));
+    assert_eq!(line[last], line[at_end]);
+    let note = s["note"].as_str().unwrap();
+    assert!(note.contains("past the command's end"), "{note}");
+    // A slow loop does not settle within 10 s: the answer stops there and warns.
+    put_machine(&app, "slow", &xyz_kv(0.3, 0.0)).await;
+    let r = contour(&app, "slow", &json!({"gcode": "G1 X20 F3000\n"})).await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    assert_eq!(b["settle"]["settled"], json!(false));
+    assert!((b["settle"]["settle_s"].as_f64().unwrap() - 10.0).abs() < 2e-3);
+    let w: Vec<String> = serde_json::from_value(b["warnings"].clone()).unwrap();
+    assert!(w.iter().any(|w| w.contains("did not settle")), "{w:?}");
+}
+on_both_backends!(the_simulation_runs_until_the_servo_settles);
+
 #[test]
 fn cli_predicts_from_a_machine_file_and_names_bad_lines() {
     let dir = tempfile::tempdir().unwrap();
@@ -368,8 +443,13 @@ fn cli_predicts_from_a_machine_file_and_names_bad_lines() {
         String::from_utf8_lossy(&run.stderr)
     );
     assert!(stdout.contains("contour error: max 0.51"), "{stdout}");
+    assert!(
+        stdout.contains("run-out: the tool was") && stdout.contains("until it was within 0.1 um"),
+        "{stdout}"
+    );
     let b: Value = serde_json::from_slice(&std::fs::read(&out).unwrap()).unwrap();
     assert!(b["contour_error"].is_array() && b["max"].is_number());
+    assert!(b["settle"]["settled"].as_bool().unwrap(), "{}", b["settle"]);
     std::fs::write(&prog, "G1 X1 F100\nG12.1\n").unwrap();
     let run = std::process::Command::new(env!("CARGO_BIN_EXE_truecut"))
         .args(["contour", prog.to_str().unwrap(), "--machine"])

@@ -89,14 +89,20 @@ async fn stored_run_tables(app: TestApp) {
     let first: Value = r.json().await.unwrap();
     let first_id = first["id"].as_str().unwrap().to_string();
 
-    // JSON (the default): the negated means, E 8 → 0 µm and M 4.5 → 0 µm on its own run.
+    // JSON (the default): the negated means counted from the first target approached forward
+    // (0 mm, x̄↑ = 2 µm), E 8 → 0 µm and M 4.5 → 0 µm on its own run.
     let a: Value = app.get(&comp).await.json().await.unwrap();
     assert_eq!(
         (a["mode"].as_str(), a["run"].as_str()),
         (Some("mean"), Some(first_id.as_str()))
     );
     assert_eq!(a["positions"], json!([0.0, 100.0, 200.0, 300.0, 400.0]));
-    assert!((a["forward_correction"][1].as_f64().unwrap() + 0.004).abs() < 1e-12);
+    assert_eq!(
+        (a["reference_mm"].as_f64(), a["reference_rule"].as_str()),
+        (Some(0.0), Some("first_forward"))
+    );
+    assert!(a["forward_correction"][0].as_f64().unwrap().abs() < 1e-12);
+    assert!((a["forward_correction"][1].as_f64().unwrap() + 0.002).abs() < 1e-12);
     assert!((a["before"]["E"].as_f64().unwrap() - 0.008).abs() < 1e-12);
     assert!(a["after"]["E"].as_f64().unwrap().abs() < 1e-12);
     assert!(
@@ -106,7 +112,8 @@ async fn stored_run_tables(app: TestApp) {
             .starts_with("correction = what the controller adds")
     );
 
-    // LinuxCNC: the triplets first (target 100: x̄↑ +4 µm → trim −0.004), the notes after.
+    // LinuxCNC: the triplets first (target 100: x̄↑ +4 µm, 2 µm above the reference's → trim
+    // −0.002), the notes after.
     let f = text(
         &app,
         &format!("{comp}?format=linuxcnc"),
@@ -116,15 +123,19 @@ async fn stored_run_tables(app: TestApp) {
     .await;
     let t = linuxcnc_triplets(&f);
     assert_eq!(t.len(), 5, "{f}");
-    assert_eq!(t[1], [100.0, -0.004, 0.0]);
+    assert_eq!(t[1], [100.0, -0.002, 0.002]);
     assert!(f.contains(&format!("from ISO 230-2 run {first_id}")), "{f}");
+    assert!(
+        f.contains("# reference: corrections are relative to 0 mm approached forward"),
+        "{f}"
+    );
     assert!(f.contains("COMP_FILE_TYPE = 1"));
 
     // A second run becomes the latest; the first stays reachable by id.
     assert_eq!(app.post_json(base, &hand_body(0.5)).await.status(), 201);
     let latest: Value = app.get(&comp).await.json().await.unwrap();
     assert_ne!(latest["run"], json!(first_id));
-    assert!((latest["forward_correction"][1].as_f64().unwrap() + 0.002).abs() < 1e-12);
+    assert!((latest["forward_correction"][1].as_f64().unwrap() + 0.001).abs() < 1e-12);
     let model = format!("{comp}?run={first_id}&format=csv&mode=model&spacing_mm=50");
     let c = csv_triplets(&text(&app, &model, "text/csv", "m1-X-model-comp.csv").await);
     assert_eq!(c.len(), 9);
@@ -174,6 +185,12 @@ async fn stored_run_tables(app: TestApp) {
         ("?format=xml", 400, &["format 'xml'", "linuxcnc"][..]),
         ("?mode=spline", 400, &["mode 'spline'"][..]),
         ("?table=1", 400, &["unknown query parameter 'table'"][..]),
+        ("?reference_mm=x", 400, &["reference_mm='x'"][..]),
+        (
+            "?reference_mm=250",
+            422,
+            &["250 mm is not a target", "0, 100, 200, 300, 400"][..],
+        ),
     ] {
         assert_problem(app.get(&format!("{comp}{query}")).await, status, needles).await;
     }
@@ -333,6 +350,203 @@ async fn posted_tables_cut_e_and_m_of_a_second_run() {
         .await,
         422,
         &["at least 5 targets"],
+    )
+    .await;
+}
+
+/// Targets of the logged run with a laser offset, mm (uneven, ISO 230-2:2014 §5.2).
+const LOG_TARGETS: [f64; 6] = [0.0, 48.3, 101.7, 152.2, 199.1, 250.0];
+/// The laser's zero: it reads every position this much off, mm.
+const LASER_OFFSET_MM: f64 = 37.215;
+
+/// The axis' true deviation (measured − target) at `p` approached in the positive
+/// (`forward`) or negative direction, mm: 25 µm/m scale, a 4 µm cyclic error of 130 mm pitch
+/// and a 5 µm reversal.
+fn true_deviation(p: f64, forward: bool) -> f64 {
+    25e-6 * p
+        + 0.004 * (std::f64::consts::TAU * p / 130.0 + 0.3).sin()
+        + if forward { 0.0025 } else { -0.0025 }
+}
+
+/// A logged linear cycle (ISO 230-2:2014 §5.3.2): five cycles over [`LOG_TARGETS`] with 2 mm
+/// overruns, the command interpolated at 25 mm/s and held 1.5 s at every target, logged at
+/// 100 Hz; the axis a first-order position loop (kv 20 1/s, simulated in 1 ms steps); the
+/// laser reads the table position plus the deviation of the direction last moved, plus
+/// [`LASER_OFFSET_MM`].
+fn offset_log() -> Value {
+    const SUB: usize = 10;
+    let (period_s, kv) = (0.01, 20.0);
+    let dt = period_s / SUB as f64;
+    let (lo, hi) = (-2.0, 252.0);
+    let (mut x, mut here, mut forward) = (lo, lo, true);
+    let (mut commanded, mut measured) = (Vec::new(), Vec::new());
+    let mut k = 0_usize;
+    let mut step = |x: &mut f64, c: f64, forward: bool| {
+        *x += kv * (c - *x) * dt;
+        if k % SUB == 0 {
+            commanded.push(c);
+            measured.push(*x + true_deviation(*x, forward) + LASER_OFFSET_MM);
+        }
+        k += 1;
+    };
+    for _ in 0..1000 {
+        step(&mut x, lo, forward);
+    }
+    for _ in 0..5 {
+        let up = LOG_TARGETS.iter().map(|&p| (p, 1.5)).chain([(hi, 0.5)]);
+        let down = LOG_TARGETS
+            .iter()
+            .rev()
+            .map(|&p| (p, 1.5))
+            .chain([(lo, 0.5)]);
+        for (to, dwell_s) in up.chain(down) {
+            forward = to > here;
+            let steps = ((to - here).abs() / (25.0 * dt)).ceil() as usize;
+            for s in 1..=steps {
+                step(
+                    &mut x,
+                    here + (to - here) * s as f64 / steps as f64,
+                    forward,
+                );
+            }
+            for _ in 0..(dwell_s / dt) as usize {
+                step(&mut x, to, forward);
+            }
+            here = to;
+        }
+    }
+    json!({"trace": {"period_s": period_s, "commanded": commanded, "measured": measured}})
+}
+
+/// The issue's test (issue 39 item 5): a logged run whose laser reads 37.215 mm off gives a
+/// table counted from the first target approached forward, whose corrections (the largest
+/// among them) are the true ones; a named reference reads 0 forward; the stored run gives the
+/// same file; a correction beyond 1 mm is refused naming the target and the limit.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_logged_run_with_a_laser_offset_gives_the_true_table() {
+    let app = spawn_app().await;
+    let log = offset_log();
+    let truth = |reference: f64| -> Vec<[f64; 3]> {
+        let zero = true_deviation(reference, true);
+        LOG_TARGETS
+            .iter()
+            .map(|&p| {
+                [
+                    p,
+                    zero - true_deviation(p, true),
+                    zero - true_deviation(p, false),
+                ]
+            })
+            .collect()
+    };
+    let largest = |t: &[[f64; 3]]| {
+        t.iter()
+            .flat_map(|r| [r[1], r[2]])
+            .fold(0.0_f64, |m, c| if c.abs() > m.abs() { c } else { m })
+    };
+    let check = |what: &str, got: &[[f64; 3]], want: &[[f64; 3]]| {
+        assert_eq!(got.len(), want.len(), "{what}: {got:?}");
+        let (g, w) = (largest(got), largest(want));
+        println!(
+            "{what}: laser offset {LASER_OFFSET_MM} mm; largest correction {:.3} um, true {:.3} um \
+             (difference {:.3} um)",
+            g * 1e3,
+            w * 1e3,
+            (g - w).abs() * 1e3
+        );
+        assert!(
+            (g - w).abs() < 0.2e-3,
+            "{what}: largest {g} mm, true {w} mm"
+        );
+        for (a, b) in got.iter().zip(want) {
+            assert!((a[0] - b[0]).abs() < 1e-9, "{what}: {a:?} vs {b:?}");
+            assert!(
+                (a[1] - b[1]).abs() < 0.2e-3 && (a[2] - b[2]).abs() < 0.2e-3,
+                "{what}: {a:?} vs true {b:?}"
+            );
+        }
+    };
+    let post = |query: &'static str| {
+        let (app, log) = (&app, &log);
+        async move {
+            let r = app
+                .post_json(&format!("/v1/iso230-2/compensation?{query}"), log)
+                .await;
+            assert_eq!(r.status(), 200, "{query}");
+            r.text().await.unwrap()
+        }
+    };
+    let file = post("format=linuxcnc").await;
+    check("LinuxCNC file", &linuxcnc_triplets(&file), &truth(0.0));
+    assert!(
+        file.contains(
+            "# reference: corrections are relative to 0 mm approached forward (the first target \
+             approached in the positive direction)"
+        ),
+        "{file}"
+    );
+    let csv = post("format=csv&reference_mm=101.7").await;
+    check(
+        "CSV, reference 101.7 mm",
+        &csv_triplets(&csv),
+        &truth(101.7),
+    );
+    assert!(
+        csv.lines().take_while(|l| l.starts_with('#')).any(|l| l
+            .starts_with("# reference: corrections are relative to 101.7 mm")
+            && l.contains("reference_mm")),
+        "{csv}"
+    );
+    let a: Value = serde_json::from_str(&post("format=json&mode=model").await).unwrap();
+    assert_eq!(
+        (a["reference_mm"].as_f64(), a["reference_rule"].as_str()),
+        (Some(0.0), Some("first_forward"))
+    );
+    assert!(a["forward_correction"][0].as_f64().unwrap().abs() < 1e-9);
+    assert!(
+        a["forward_correction"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| c.as_f64().unwrap().abs() < 0.02)
+    );
+
+    // Stored from the log: the same reference (its first forward reading) and file.
+    assert!(
+        app.put_json("/v1/machines/m1", &crate::helpers::machine_xyz())
+            .await
+            .status()
+            .is_success()
+    );
+    let base = "/v1/machines/m1/axes/X/iso230-2";
+    assert_eq!(app.post_json(base, &log).await.status(), 201);
+    let stored = text(
+        &app,
+        &format!("{base}/compensation?format=linuxcnc"),
+        "text/plain",
+        "m1-X-mean-comp.txt",
+    )
+    .await;
+    check("stored run", &linuxcnc_triplets(&stored), &truth(0.0));
+
+    // A correction beyond the limit: target 152.2 mm read 1.2 mm off (another axis' readings).
+    let mut table = json!({"targets": LOG_TARGETS});
+    for (dir, fwd) in [("forward", true), ("backward", false)] {
+        table[dir] = json!(
+            LOG_TARGETS
+                .iter()
+                .map(|&p| {
+                    let off = if p == 152.2 { 1.2 } else { 0.0 };
+                    vec![p + true_deviation(p, fwd) + off; 5]
+                })
+                .collect::<Vec<_>>()
+        );
+    }
+    assert_problem(
+        app.post_json("/v1/iso230-2/compensation?format=linuxcnc", &table)
+            .await,
+        422,
+        &["correction at 152.2 mm is -1.2", "at most 1 mm"],
     )
     .await;
 }

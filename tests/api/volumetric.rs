@@ -323,10 +323,26 @@ async fn fitting_needs_admin(mut app: TestApp) {
 on_both_backends!(fitting_needs_admin, |c| c.tokens =
     Some("admin-token admin\nwriter-token write\nreader-token read\n".into()));
 
+/// Whether machine `m` has a volumetric map, as the machine list says.
+async fn has_map(app: &TestApp) -> bool {
+    let list: Value = app.get("/v1/machines").await.json().await.unwrap();
+    let m = list["machines"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|x| x["id"] == "m")
+        .cloned()
+        .unwrap();
+    m["volumetric_map"].as_bool().unwrap()
+}
+
 /// Every PUT keeps the previous maps: list them, roll back (the predictions follow), refuse
 /// unknown versions; a delete removes them all.
 async fn versions_and_rollback(app: TestApp) {
     put_machine(&app).await;
+    // The machine list says whether each machine has a map (so that a client, such as the
+    // dashboard, asks only for what exists): not yet, then yes, then no again after a delete.
+    assert!(!has_map(&app).await);
     let m = machine();
     let at = json!({"points": [[10.0, 20.0, 30.0]]});
     assert_eq!(
@@ -361,6 +377,7 @@ async fn versions_and_rollback(app: TestApp) {
         .await
         .unwrap();
     assert_eq!(v["current"], 2, "{v}");
+    assert!(has_map(&app).await);
     assert_eq!(v["versions"].as_array().unwrap().len(), 2, "{v}");
     assert_eq!(v["versions"][0]["version"], 2);
     assert_eq!(v["versions"][0]["sha256"].as_str().unwrap().len(), 64);
@@ -391,5 +408,6 @@ async fn versions_and_rollback(app: TestApp) {
     .await;
     assert_eq!(app.delete(MAP).await.status(), 204);
     assert_problem(app.get(&format!("{MAP}/versions")).await, 404, &["PUT"]).await;
+    assert!(!has_map(&app).await);
 }
 on_both_backends!(versions_and_rollback);

@@ -5,7 +5,8 @@
 
 use super::*;
 use crate::metrology::comp_model::Cyclic;
-use crate::metrology::comp_table::{TableSource, build_table};
+use crate::metrology::comp_table::TableSource;
+use crate::metrology::comp_table::tests::build_first;
 use crate::metrology::iso230_2::evaluate_table;
 use crate::metrology::iso230_2::tests::hand_table;
 
@@ -31,7 +32,7 @@ fn reference_linuxcnc_load(text: &str, comp_file_type: u8) -> Vec<(f64, f64, f64
 }
 
 fn hand_mean_table() -> CompTable {
-    build_table(&evaluate_table(&hand_table()).unwrap(), TableSource::Mean).unwrap()
+    build_first(&evaluate_table(&hand_table()).unwrap(), TableSource::Mean).unwrap()
 }
 
 #[test]
@@ -58,12 +59,14 @@ fn linuxcnc_loads_every_position_of_the_file_with_the_sign_of_a_correction() {
         assert!((fwd - table.forward_mm[k]).abs() <= 5e-7);
         assert!((rev - table.backward_mm[k]).abs() <= 5e-7);
     }
-    // Target 100 mm: x̄↑ = +4 µm (stops past the target going up) → trim −0.004 mm, which
-    // LinuxCNC adds to the command; x̄↓ = 0 → 0 (no "-0").
+    // Target 100 mm: x̄↑ = +4 µm (stops past the target going up), 2 µm more than at the
+    // reference (0 mm, x̄↑ = +2 µm) → trim −0.002 mm, which LinuxCNC adds to the command;
+    // x̄↓ = 0 → +0.002. The reference itself: 0 forward (no "-0").
     assert!(
-        text.lines().any(|l| l == "100.000000 -0.004000 0.000000"),
+        text.lines().any(|l| l == "100.000000 -0.002000 0.002000"),
         "{text}"
     );
+    assert!(text.starts_with("0.000000 0.000000 0.003000\n"), "{text}");
     // The notes: after a blank line, provenance first, every one a comment.
     let notes: Vec<&str> = text.lines().skip(table.len()).collect();
     assert_eq!(notes[0], "");
@@ -72,6 +75,7 @@ fn linuxcnc_loads_every_position_of_the_file_with_the_sign_of_a_correction() {
     assert!(
         text.contains("COMP_FILE_TYPE = 1")
             && text.contains("sign: correction = what the controller adds")
+            && text.contains("# reference: corrections are relative to 0 mm approached forward")
     );
 }
 
@@ -82,7 +86,7 @@ fn linuxcnc_refuses_more_than_256_positions_naming_the_spacing() {
         cyclic: Cyclic::Off,
         spacing_mm: Some(spacing_mm),
     };
-    let long = build_table(&axis, source(1.0)).unwrap();
+    let long = build_first(&axis, source(1.0)).unwrap();
     assert_eq!(long.len(), 401);
     let e = linuxcnc_file(&long, &[]).unwrap_err();
     assert!(
@@ -90,7 +94,7 @@ fn linuxcnc_refuses_more_than_256_positions_naming_the_spacing() {
         "{e}"
     );
     // 400 mm / 1.569 mm = 254.9 steps: 256 positions, loaded whole.
-    let fits = build_table(&axis, source(1.569)).unwrap();
+    let fits = build_first(&axis, source(1.569)).unwrap();
     assert_eq!(fits.len(), 256);
     let text = linuxcnc_file(&fits, &[]).unwrap();
     assert_eq!(reference_linuxcnc_load(&text, 1).len(), 256);

@@ -8,6 +8,11 @@ use super::*;
 use crate::metrology::comp_model::{Cyclic, fit_model};
 use crate::metrology::iso230_2::tests::hand_table;
 
+/// The table referenced to its default (the lowest target, for a table).
+pub(crate) fn build_first(axis: &Axis230_2, source: TableSource) -> Result<CompTable, Error> {
+    build_table(axis, source, Reference::first_forward_of(axis))
+}
+
 fn close(got: f64, want: f64, tol: f64, what: &str) {
     assert!(
         (got - want).abs() <= tol,
@@ -16,29 +21,125 @@ fn close(got: f64, want: f64, tol: f64, what: &str) {
 }
 
 #[test]
-fn mean_table_negates_the_hand_means_in_ascending_order() {
-    // Hand table (µm): x̄↑ = 2, 4, 1, −1, 3 and x̄↓ = −1, 0, −3, −4, 1 at 0…400 mm.
+fn mean_table_negates_the_hand_means_from_the_reference_in_ascending_order() {
+    // Hand table (µm): x̄↑ = 2, 4, 1, −1, 3 and x̄↓ = −1, 0, −3, −4, 1 at 0…400 mm; the
+    // reference is the lowest target (x̄↑ = 2 µm), so c = 2 µm − x̄.
     let mut t = hand_table();
     // Send the targets in reverse order: the table must still ascend.
     t.targets_mm.reverse();
     t.forward_mm.reverse();
     t.backward_mm.reverse();
     let axis = evaluate_table(&t).unwrap();
-    let table = build_table(&axis, TableSource::Mean).unwrap();
+    let table = build_first(&axis, TableSource::Mean).unwrap();
     assert_eq!(table.positions_mm, vec![0.0, 100.0, 200.0, 300.0, 400.0]);
     for (k, (f, b)) in [(2., -1.), (4., 0.), (1., -3.), (-1., -4.), (3., 1.)]
         .into_iter()
         .enumerate()
     {
-        close(table.forward_mm[k], -f * 1e-3, 1e-12, "forward correction");
+        close(
+            table.forward_mm[k],
+            (2.0 - f) * 1e-3,
+            1e-12,
+            "forward correction",
+        );
         close(
             table.backward_mm[k],
-            -b * 1e-3,
+            (2.0 - b) * 1e-3,
             1e-12,
             "backward correction",
         );
     }
     assert!(table.model.is_none() && table.spacing_mm.is_none());
+    assert_eq!(table.reference, Reference::FirstForward(0.0));
+}
+
+#[test]
+fn the_device_zero_never_enters_and_a_named_reference_reads_zero_forward() {
+    // The hand table read by a laser zeroed 37.215 mm away: every reading carries it.
+    let mut t = hand_table();
+    let plain = build_first(&evaluate_table(&t).unwrap(), TableSource::Mean).unwrap();
+    for row in t.forward_mm.iter_mut().chain(t.backward_mm.iter_mut()) {
+        for x in row {
+            *x += 37.215;
+        }
+    }
+    let axis = evaluate_table(&t).unwrap();
+    let source = TableSource::Model {
+        cyclic: Cyclic::Off,
+        spacing_mm: Some(50.0),
+    };
+    for (src, want) in [
+        (TableSource::Mean, plain.clone()),
+        (
+            source,
+            build_first(&evaluate_table(&hand_table()).unwrap(), source).unwrap(),
+        ),
+    ] {
+        let got = build_first(&axis, src).unwrap();
+        for k in 0..got.len() {
+            close(got.forward_mm[k], want.forward_mm[k], 1e-9, "forward");
+            close(got.backward_mm[k], want.backward_mm[k], 1e-9, "backward");
+        }
+        close(got.forward_mm[0], 0.0, 1e-9, "forward at the reference");
+    }
+    // Named 300 mm (x̄↑ = −1 µm): its forward correction is 0, the others counted from it.
+    let named = build_table(&axis, TableSource::Mean, Reference::Named(300.0)).unwrap();
+    close(named.forward_mm[3], 0.0, 1e-9, "forward at 300");
+    close(
+        named.forward_mm[1],
+        -5e-3,
+        1e-9,
+        "forward at 100: −(4 − (−1)) µm",
+    );
+    close(
+        named.backward_mm[4],
+        -2e-3,
+        1e-9,
+        "backward at 400: −(1 − (−1)) µm",
+    );
+    let text = named.reference.describe();
+    assert!(
+        text.starts_with("corrections are relative to 300 mm"),
+        "{text}"
+    );
+    assert!(text.contains("reference_mm"), "{text}");
+    // A reference that is no target is refused, listing the targets.
+    let e = build_table(&axis, TableSource::Mean, Reference::Named(250.0)).unwrap_err();
+    assert!(
+        e.to_string()
+            .starts_with("reference_mm: 250 mm is not a target of this run")
+            && e.to_string().contains("0, 100, 200, 300, 400"),
+        "{e}"
+    );
+}
+
+#[test]
+fn a_correction_beyond_a_millimetre_is_refused_naming_the_target() {
+    // Target 200 mm read 1.5 mm off both ways (another axis' readings, or inches).
+    let mut t = hand_table();
+    for row in [&mut t.forward_mm[2], &mut t.backward_mm[2]] {
+        for x in row.iter_mut() {
+            *x += 1.5;
+        }
+    }
+    let e = build_first(&evaluate_table(&t).unwrap(), TableSource::Mean).unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::CorrectionTooLarge {
+                position_mm: 200.0,
+                limit_mm: MAX_CORRECTION_MM,
+                ..
+            }
+        ),
+        "{e:?}"
+    );
+    let text = e.to_string();
+    assert!(
+        text.starts_with("the forward correction at 200 mm is -1.499000 mm")
+            && text.contains("at most 1 mm"),
+        "{text}"
+    );
 }
 
 #[test]
@@ -49,6 +150,7 @@ fn correction_interpolates_and_holds_the_ends_like_linuxcnc() {
         backward_mm: vec![-1.0, 1.0, 0.0],
         model: None,
         spacing_mm: None,
+        reference: Reference::FirstForward(0.0),
     };
     // Inside: c_k + slope (P − P_k); at a position exactly; below the first and beyond the
     // last the end value (LinuxCNC's sentinels carry zero slope).
@@ -69,7 +171,7 @@ fn correction_interpolates_and_holds_the_ends_like_linuxcnc() {
 #[test]
 fn the_mean_table_zeroes_e_and_m_of_its_own_run() {
     let t = hand_table();
-    let table = build_table(&evaluate_table(&t).unwrap(), TableSource::Mean).unwrap();
+    let table = build_first(&evaluate_table(&t).unwrap(), TableSource::Mean).unwrap();
     let (before, after) = table.predict(&t).unwrap();
     close(before.e, 8e-3, 1e-12, "E before");
     close(before.m, 4.5e-3, 1e-12, "M before");
@@ -139,15 +241,15 @@ fn the_model_table_spans_the_run_on_the_spacing() {
         cyclic: Cyclic::Off,
         spacing_mm,
     };
-    let t = build_table(&axis, model(None)).unwrap();
+    let t = build_first(&axis, model(None)).unwrap();
     // 400 mm wants 4 mm steps: 5 mm, 81 positions.
     assert_eq!((t.len(), t.spacing_mm), (81, Some(5.0)));
-    let t = build_table(&axis, model(Some(30.0))).unwrap();
+    let t = build_first(&axis, model(Some(30.0))).unwrap();
     // 0, 30, …, 390, then the last target 400 (a 10 mm step).
     assert_eq!(t.len(), 15);
     assert_eq!((t.positions_mm[13], t.positions_mm[14]), (390.0, 400.0));
     // A last step under 1 % of the spacing is merged: 0, 133.34, 266.68, 400.
-    let t = build_table(&axis, model(Some(133.34))).unwrap();
+    let t = build_first(&axis, model(Some(133.34))).unwrap();
     assert_eq!(t.len(), 4, "{:?}", t.positions_mm);
     // The forward and backward columns differ by the backlash everywhere.
     for k in 0..t.len() {
@@ -160,7 +262,7 @@ fn refusals_name_the_parameter() {
     let axis = evaluate_table(&hand_table()).unwrap();
     let model = |cyclic, spacing_mm| TableSource::Model { cyclic, spacing_mm };
     for bad in [0.0, -1.0, f64::NAN, 0.0005] {
-        let e = build_table(&axis, model(Cyclic::Off, Some(bad))).unwrap_err();
+        let e = build_first(&axis, model(Cyclic::Off, Some(bad))).unwrap_err();
         assert!(
             matches!(
                 e,
@@ -172,10 +274,10 @@ fn refusals_name_the_parameter() {
             "{e}"
         );
     }
-    let e = build_table(&axis, model(Cyclic::Off, Some(0.01))).unwrap_err();
+    let e = build_first(&axis, model(Cyclic::Off, Some(0.01))).unwrap_err();
     assert!(e.to_string().contains("at most 10001"), "{e}");
     // 5 targets 100 mm apart cannot resolve a 150 mm pitch.
-    let e = build_table(&axis, model(Cyclic::Pitch(150.0), None)).unwrap_err();
+    let e = build_first(&axis, model(Cyclic::Pitch(150.0), None)).unwrap_err();
     assert!(
         e.to_string()
             .starts_with("cyclic_pitch_mm: a pitch of 150 mm"),
@@ -186,9 +288,9 @@ fn refusals_name_the_parameter() {
     t.forward_mm.truncate(3);
     t.backward_mm.truncate(3);
     let three = evaluate_table(&t).unwrap();
-    assert!(build_table(&three, model(Cyclic::Off, None)).is_ok());
+    assert!(build_first(&three, model(Cyclic::Off, None)).is_ok());
     for cyclic in [Cyclic::Fit, Cyclic::Pitch(500.0)] {
-        let e = build_table(&three, model(cyclic, None)).unwrap_err();
+        let e = build_first(&three, model(cyclic, None)).unwrap_err();
         assert!(matches!(e, Error::TooFew { got: 3, .. }), "{e}");
     }
 }
@@ -316,7 +418,7 @@ fn tables_cut_e_and_m_by_80_percent_on_their_own_and_a_second_run() {
         let third = axis.run(&midway, &mut rng);
         let evaluated = evaluate_table(&first).unwrap();
         for (k, (name, source)) in modes.iter().enumerate() {
-            let table = build_table(&evaluated, *source).unwrap();
+            let table = build_first(&evaluated, *source).unwrap();
             let runs: &[&PositionTable] = if *name == "model" {
                 &[&first, &second, &third]
             } else {

@@ -15,7 +15,9 @@
 //!    and the overrun (turnaround) points are approached from one side and are not targets.
 //! 3. **Settled stops** of the measured position (`settle.rs`): samples where the speed over a
 //!    window of `min_settled_s` centred on them is at most `settle_speed_mm_s`; the reading is
-//!    the mean over the stop's settled samples (the approach and the departure are left out).
+//!    the mean over the stop's settled *end*, its last window before the axis moves again
+//!    (a slowly settling axis is still creeping in when it first moves slower than the
+//!    threshold: 10 µm short at 10 µm/s with a 1 s time constant).
 //! 4. **Matching** (`matching.rs`): stops and approaches in time order, by position only (less
 //!    the measuring device's constant offset, found as the shift that puts the most stops on
 //!    commanded positions). The offset is reported and kept in the readings: a constant shifts

@@ -55,9 +55,10 @@ pub struct TraceReading {
     pub cycle: usize,
     /// The command's hold this reading answers, `[start, end)` in command samples.
     pub command: [usize; 2],
-    /// The settled samples averaged, `[start, end)` in measured samples.
+    /// The settled samples averaged: the stop's settled end, `[start, end)` in measured
+    /// samples (settled ones only, when noise split the stop).
     pub settled: [usize; 2],
-    /// The reading (mean measured position over the settled samples), mm.
+    /// The reading (mean measured position over the stop's settled end), mm.
     pub reading_mm: f64,
 }
 
@@ -68,7 +69,8 @@ pub struct Settling {
     pub settle_speed_mm_s: f64,
     /// Minimum settled time, s.
     pub min_settled_s: f64,
-    /// The speed window actually used, s (2h + 1 samples).
+    /// The speed window actually used, s (2h + 1 samples); a reading averages the last such
+    /// window of its stop.
     pub window_s: f64,
     /// How far a stop may sit from a commanded position, mm.
     pub match_tolerance_mm: f64,
@@ -187,13 +189,14 @@ pub fn find_visits(trace: &PositioningTrace, opts: &TraceOptions) -> (Vec<Visit>
     (visits, positions)
 }
 
-/// Evaluates a logged positioning run by ISO 230-2:2014: readings where the measured position
-/// has settled, matched to the command's approaches (see the module docs), then
-/// [`evaluate_table`]. Errors: mismatched or non-finite arrays, bad options
+/// Evaluates a logged positioning run by ISO 230-2:2014: readings at the settled end of each
+/// stop of the measured position, matched to the command's approaches (see the module docs),
+/// then [`evaluate_table`]. Errors: mismatched or non-finite arrays, bad options
 /// ([`Error::Invalid`]), a target with fewer readings than cycles in a direction
 /// ([`Error::MissingReadings`]), and the table's own refusals (fewer than 2 targets).
 ///
-/// Formula: reading = mean of the measured position over a stop's settled samples; the
+/// Formula: reading = mean of the measured position over the stop's last speed window of
+/// settled samples (2h + 1, about `min_settled_s`; [`super::SettledRun::settled_end`]); the
 /// figures are [`evaluate_table`]'s.
 ///
 /// Reference: ISO 230-2:2014 §5.3.2 (linear cycle, overrun) and §3, §7.
@@ -208,6 +211,7 @@ pub fn evaluate_trace(
     check(trace, opts)?;
     let (visits, positions) = find_visits(trace, opts);
     let y = &trace.measured_mm;
+    let h = settle::half_window(trace.period_s, opts.min_settled_s, y.len());
     let runs = merge_stops(
         y,
         settled_runs(
@@ -283,15 +287,16 @@ pub fn evaluate_trace(
             for (v, visit) in approaches {
                 match answered[v] {
                     Some(run) => {
+                        let (first, reading_mm) = run.settled_end(y, 2 * h + 1);
                         used.push(TraceReading {
                             target_mm: position,
                             forward: fwd,
                             cycle: row.len(),
                             command: [visit.start, visit.end],
-                            settled: [run.start, run.end],
-                            reading_mm: run.mean_mm,
+                            settled: [first, run.end],
+                            reading_mm,
                         });
-                        row.push(run.mean_mm);
+                        row.push(reading_mm);
                     }
                     None => {
                         first_missing.get_or_insert(visit.start);
@@ -320,7 +325,6 @@ pub fn evaluate_trace(
     let axis = evaluate_table(&table)?;
     let mut offsets: Vec<f64> = used.iter().map(|r| r.reading_mm - r.target_mm).collect();
     offsets.sort_by(f64::total_cmp);
-    let h = settle::half_window(trace.period_s, opts.min_settled_s, y.len());
     Ok(TraceEvaluation {
         axis,
         table,
