@@ -9,7 +9,7 @@
 //! - `segment_cap`: LinuxCNC's trajectory planner caps a segment's speed at its length over
 //!   1.02 interpolation periods, so that every segment is sampled at least once
 //!   (`tp.c` `tpAddLine`: `sample_maxvel = tc.target / (tp->cycleTime *
-//!   TP_MIN_SEGMENT_CYCLES)` with `TP_MIN_SEGMENT_CYCLES 1.02` in `tp_types.h`, LinuxCNC 2.9):
+//!   TP_MIN_SEGMENT_CYCLES)` with `TP_MIN_SEGMENT_CYCLES 1.02` in `tp_types.h`, LinuxCNC 2.7 onwards):
 //!   20 µm chords at a 1 ms period run at most 19.6 mm/s. The planner always does it, so it
 //!   defaults to true for `"linuxcnc"` and to false otherwise.
 //! - `block_rate_hz`: blocks the controller can read and plan per second. A GRBL on an

@@ -104,7 +104,7 @@ impl Reader<'_> {
                     self.m.path.exact_stop = false;
                     c.path.p = w.get(b'P').is_some();
                     self.m.path.blend_mm = match w.get(b'P') {
-                        Some(p) if !(p >= 0.0) => {
+                        Some(p) if p.is_nan() || p < 0.0 => {
                             return Err(Error::gcode(
                                 line,
                                 "G64 P (blending tolerance) must be >= 0",
@@ -159,8 +159,8 @@ impl Reader<'_> {
         v: Option<f64>,
     ) -> Result<bool, Error> {
         match v {
-            Some(v) if v == 1.0 => Ok(true),
-            Some(v) if v == 0.0 => {
+            Some(1.0) => Ok(true),
+            Some(0.0) => {
                 self.notes.note(
                     line,
                     format!("{code} {letter}0"),

@@ -11,7 +11,8 @@
 //! lengths, G28/G53 with a caller-given home, G30 with a caller-given G30 position. Passed
 //! through with a warning (each word once, [`Warning`]), or refused under `strict`: comments,
 //! `%`, O numbers (words after one on its line are read), N, S, T, D, H, M codes (vendor ones
-//! included), F-only lines, G40/G41/G42, G49, G61/G64, G80, what a cycle does that the path
+//! included), F-only lines, G40/G41/G42, G49, G61/G64 (read as path-control modes by
+//! [`parse_modes`]: `super::modes`), G80, what a cycle does that the path
 //! cannot show (pecks' clearance, tapping's spindle reversal, G86-G88's spindle stop and
 //! manual retract), block delete `/` at the start of a block or in mid-block (read with the
 //! switch off), offsets and tool lengths the caller did not give, G28/G30 without their

@@ -141,7 +141,7 @@ pub(super) fn blend_arc(c: &CornerLines, tolerance_mm: f64, machine: &Machine) -
     let r_blend = (t_blend * v_plan / turn).min(r_geom);
     let r_speed = (v_plan * v_plan / a_n).max((v_plan.powi(3) / j_n).sqrt());
     let radius = r_speed.max(r_blend).min(r_geom);
-    if !(radius * turn >= MIN_ARC_MM) {
+    if radius.is_nan() || radius * turn < MIN_ARC_MM {
         return None;
     }
     let d = radius / theta.tan();

@@ -104,7 +104,7 @@ fn g64_p_blends_a_corner_within_its_tolerance_and_passes_it_faster() {
     // The samples straddle the arc's midpoint (17 µm apart on a 0.12 mm radius).
     assert!(off_path >= 0.03, "{off_path}");
     assert!(
-        to_corner <= 0.05 + 3e-3 && to_corner >= 0.05 - 1e-9,
+        (0.05 - 1e-9..=0.05 + 3e-3).contains(&to_corner),
         "closest to the corner {to_corner} mm"
     );
     assert!(
