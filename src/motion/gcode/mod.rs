@@ -2,11 +2,11 @@
 //! Sinumerik TRAORI/TRAFOOF.
 //!
 //! Files: `lexer` (comments, words), `reader` (modal state, what a line asks for), `codes`
-//! (each G code, and the words that move nothing), `moves`
-//! (blocks, dwell, cycles in force, M codes), `frame` (work offsets, tool lengths,
-//! G28/G30/G53), `modes` (path control: G61, G61.1, G9, G64 P, G05.1, G08), `cycles` (canned drilling cycles expanded), `options` (options and
-//! warnings), `trace` (per-line frames and word positions for program rewriters) and the
-//! tests.
+//! (each G code, and the words that move nothing), `moves` (blocks, dwell, cycles in force,
+//! M codes), `frame` (work offsets, tool lengths, G28/G30/G53), `modes` (path control: G61,
+//! G61.1, G9, G64 P, G05.1, G08), `cycles` (canned drilling cycles expanded), `options`
+//! (options and warnings), `trace` (per-line frames and word positions for program
+//! rewriters) and the tests.
 
 mod codes;
 mod cycles;

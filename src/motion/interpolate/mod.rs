@@ -218,7 +218,7 @@ fn windowed_turn(items: &[(&Block, Option<Seg>)], k: usize, half: f64) -> [f64; 
 
 /// Interpolates `program` on `machine` every `period_s` seconds (machine at rest at the start
 /// and at the end), every junction in the service's look-ahead: [`interpolate_with`] and no
-/// path-control modes.
+/// path-control modes (the machine's controller limits still apply).
 pub fn interpolate(
     program: &Program,
     machine: &Machine,
