@@ -17,7 +17,7 @@ use super::extract::ApiJson;
 use super::lookup::require_machine_def;
 use crate::api::id::PathIds;
 use crate::motion::{
-    DEFAULT_PERIOD_S, ReadOptions, check_period, machine_for_simulation, parse_with,
+    DEFAULT_PERIOD_S, ReadOptions, check_period, machine_for_simulation, parse_modes,
     predict_program_settled,
 };
 use crate::wire::contour::encode_answer_with_warnings;
@@ -134,12 +134,12 @@ async fn contour_error(
     let body = state
         .jobs
         .run(move || {
-            let (mut program, mut warnings) = parse_with(&req.gcode, &options)?;
+            let (mut program, control, mut warnings) = parse_modes(&req.gcode, &options)?;
             if !options.strict {
                 let has = |name: &str| m.axes.iter().any(|a| a.name == name);
                 warnings.extend(program.forget_still_rotary_axes(has("A"), has("C")));
             }
-            predict_program_settled(&m, &program, period_s, MAX_SYNC_PERIODS)
+            predict_program_settled(&m, &program, &control, period_s, MAX_SYNC_PERIODS)
                 .map(|(p, settle)| encode_answer_with_warnings(&m, &p, &warnings, Some(&settle)))
         })
         .await??

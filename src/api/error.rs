@@ -357,9 +357,10 @@ impl From<motion::Error> for ApiError {
         match e {
             E::UnsupportedCode { line, code } => ApiError::unprocessable(format!(
                 "gcode line {line}: unsupported code {code}. Read: G0-G4 G15 G17-G21 G28 G30 \
-                 G40-G43 G43.4 G44 G49 G50 G53-G59 G61 G64 G67 G69 G73 G80-G83 G85 G90 G91 \
-                 G90.1 G91.1 G93 G94 G98 G99, TRAORI/TRAFOOF, M codes, words X Y Z A C I J K R \
-                 F N S T H D P Q L (B U V W while they keep one value)"
+                 G40-G43 G43.4 G44 G49 G50 G53-G59 G61 G61.1 G64 G67 G69 G73 G80-G83 G85 G90 \
+                 G91 G90.1 G91.1 G93 G94 G98 G99 (contour-error and gap-diagnosis also G9 G5.1 \
+                 G8), TRAORI/TRAFOOF, M codes, words X Y Z A C I J K R F N S T H D P Q L \
+                 (B U V W while they keep one value)"
             )),
             E::Gcode { line, message } => {
                 ApiError::unprocessable(format!("gcode line {line}: {message}"))

@@ -26,8 +26,8 @@ use crate::gap::{
 };
 use crate::jobs::{Progress, Runner};
 use crate::motion::{
-    Machine, ServoAxes, check_period, interpolate, machine_for_simulation, parse_with, servo_axes,
-    stored_definition,
+    Machine, ServoAxes, check_period, interpolate_with, machine_for_simulation, parse_modes,
+    servo_axes, stored_definition,
 };
 
 /// Routes of this resource.
@@ -194,7 +194,7 @@ async fn motion_from_program(
     let answer = state
         .jobs
         .run(move || -> ApiResult<Value> {
-            let (mut program, warnings) = parse_with(&gcode, &options)?;
+            let (mut program, control, warnings) = parse_modes(&gcode, &options)?;
             let mut warnings: Vec<String> = warnings.iter().map(ToString::to_string).collect();
             if !options.strict {
                 let has = |name: &str| sim.axes.iter().any(|a| a.name == name);
@@ -205,7 +205,7 @@ async fn motion_from_program(
                         .map(ToString::to_string),
                 );
             }
-            let traj = interpolate(&program, &sim, period_s, MAX_PROGRAM_PERIODS)?;
+            let traj = interpolate_with(&program, &control, &sim, period_s, MAX_PROGRAM_PERIODS)?;
             let have = traj.line.len();
             let mut cmd = ProgramCommand {
                 commanded: traj.axes,

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, bail};
 
-use crate::motion::gcode::{ReadOptions, parse_with};
+use crate::motion::gcode::{ReadOptions, parse_modes};
 use crate::motion::{DEFAULT_PERIOD_S, predict_program_settled};
 
 /// Predict the contour error of a G-code program on a machine (interpolation with RTCP,
@@ -102,7 +102,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         ..ReadOptions::default()
     };
     let at_file = |e: crate::motion::Error| anyhow::anyhow!("{}: {e}", args.file.display());
-    let (mut program, mut warnings) = parse_with(&gcode, &options).map_err(at_file)?;
+    let (mut program, control, mut warnings) = parse_modes(&gcode, &options).map_err(at_file)?;
     if !options.strict {
         let has = |name: &str| machine.axes.iter().any(|a| a.name == name);
         warnings.extend(program.forget_still_rotary_axes(has("A"), has("C")));
@@ -110,8 +110,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     for w in &warnings {
         eprintln!("warning: {}: {w}", args.file.display());
     }
-    let (p, settle) = predict_program_settled(&machine, &program, args.period_s, args.max_periods)
-        .map_err(at_file)?;
+    let (p, settle) = predict_program_settled(
+        &machine,
+        &program,
+        &control,
+        args.period_s,
+        args.max_periods,
+    )
+    .map_err(at_file)?;
     let r = &p.report;
     let n = p.commanded.t.len();
     let worst = (0..n).fold(0, |b, i| {

@@ -92,6 +92,17 @@ pub const MAX_ACCEL: Bounds = Bounds::open(0.0, 1e8, "mm/s² or deg/s², acceler
 pub const MAX_JERK: Bounds = Bounds::open(0.0, 1e11, "mm/s³ or deg/s³, jerk limit");
 /// G0 rate `rapid_mm_min`: (0, 1e6] mm/min (1 km/min; the fastest linear axes do 120 m/min).
 pub const RAPID_MM_MIN: Bounds = Bounds::open(0.0, 1e6, "mm/min, rapid rate");
+/// Controller block rate `block_rate_hz`: (0, 1e6] blocks/s. A GRBL on an ATmega328p plans
+/// about 400 lines a second; a PC controller tens of thousands; a million is no controller's.
+pub const BLOCK_RATE_HZ: Bounds =
+    Bounds::open(0.0, 1e6, "blocks per second the controller reads and plans");
+/// Controller look-ahead `lookahead_blocks`: [1, 100000] blocks (GRBL 15-16, Fanuc AI contour
+/// control 40, high-end controls a few thousand).
+pub const LOOKAHEAD_BLOCKS: Bounds = Bounds::closed(
+    1.0,
+    100_000.0,
+    "blocks the planner sees ahead of the one it executes",
+);
 /// Any geometry coordinate or length: |v| ≤ 1e5 mm (100 m).
 pub const GEOMETRY_MM: f64 = 1e5;
 

@@ -4,7 +4,8 @@
 //! `{"name"?: str, "kinematics": "xyz" | "xyzac_table", "axes"?: {AXIS: SERVO},
 //! "geometry"?: {...}, "rapid_mm_min"?: mm/min}`, where SERVO is the normalized cascade
 //! `{"kv", "kff"?, "kp_v"?, "ti_v"?, "tc"?}` plus the extensions `"max_vel"`, `"max_accel"`,
-//! `"max_jerk"` (interpolator limits) and `"physical"` ([`PhysicalAxis`]).
+//! `"max_jerk"` (interpolator limits) and `"physical"` ([`PhysicalAxis`]), and the optional
+//! `"controller"` ([`ControllerDef`]: the controller's limits on dense blocks).
 //!
 //! Why one type: the service used to check a definition three times with three rule sets (at
 //! PUT, for a contour, for a gap diagnosis), so PUT stored what a simulation later refused.
@@ -24,6 +25,7 @@ pub use super::bounds::{
     TI_V,
 };
 
+use super::controller::ControllerDef;
 use super::error::Error;
 use super::kinematics::TableGeometry;
 use super::machine::{AxisLimits, MachineAxis};
@@ -88,6 +90,10 @@ pub struct MachineDef {
     /// G30 position (second reference point), [x, y, z] mm in machine coordinates.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub g30: Option<[f64; 3]>,
+    /// The controller's limits on dense blocks (segment cap, block rate, look-ahead depth);
+    /// absent: the service's own planning.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub controller: Option<ControllerDef>,
 }
 
 /// The `"axes"` object: one optional servo per axis letter.
@@ -210,6 +216,13 @@ fn check_objects(value: &Value) -> Result<(), Error> {
             "{\"a_axis_origin\": [x, y, z], \"tool_length\": mm}",
         )?;
     }
+    if let Some(c) = top.get("controller") {
+        object(
+            "controller",
+            c,
+            "{\"kind\": \"linuxcnc\"} or {\"kind\": \"grbl\", \"lookahead_blocks\": 15}",
+        )?;
+    }
     let Some(Some(axes)) = top
         .get("axes")
         .map(|a| object("axes", a, "{\"X\": {\"kv\": 30}}"))
@@ -266,7 +279,8 @@ impl MachineDef {
     /// `xyzac_table` and finite (|v| ≤ [`GEOMETRY_MM`]); `rapid_mm_min` in [`RAPID_MM_MIN`];
     /// per axis the ranges [`KV`], [`KFF`], [`KP_V`], [`TI_V`], [`TC`], [`MAX_VEL`],
     /// [`MAX_ACCEL`], [`MAX_JERK`], [`PHYSICAL`], the physical parameters each axis kind needs,
-    /// and a stable closed loop after `physical` fills `kp_v`/`tc` ([`ServoAxis::validate`]).
+    /// and a stable closed loop after `physical` fills `kp_v`/`tc` ([`ServoAxis::validate`]);
+    /// the controller's limits ([`ControllerDef::limits`]).
     pub fn validate(&self) -> Result<(), Error> {
         let kin = self.kinematics;
         if let Some(g) = &self.geometry {
@@ -299,6 +313,9 @@ impl MachineDef {
         }
         if let Some(r) = self.rapid_mm_min {
             RAPID_MM_MIN.check("rapid_mm_min", r)?;
+        }
+        if let Some(c) = &self.controller {
+            c.limits()?;
         }
         for (name, point) in [("home", self.home), ("g30", self.g30)] {
             if let Some(v) = point

@@ -3,6 +3,7 @@
 
 use serde_json::Value;
 
+use super::controller::ControllerLimits;
 use super::def::{KinematicsKind, MachineDef};
 use super::error::Error;
 use super::kinematics::Kinematics;
@@ -58,6 +59,8 @@ pub struct Machine {
     pub axes: Vec<MachineAxis>,
     /// G0 rate along the path, mm/min (each axis still capped by its `max_vel`).
     pub rapid_mm_min: f64,
+    /// The controller's limits on dense blocks (default: none, the service's own planning).
+    pub controller: ControllerLimits,
 }
 
 impl Machine {
@@ -89,6 +92,10 @@ impl Machine {
             kinematics,
             axes,
             rapid_mm_min: def.rapid_mm_min.unwrap_or(30_000.0),
+            controller: match &def.controller {
+                Some(c) => c.limits()?,
+                None => ControllerLimits::default(),
+            },
         })
     }
 }

@@ -6,8 +6,9 @@
 use super::contour::{ContourReport, contour_error};
 use super::error::Error;
 use super::gcode;
-use super::interpolate::{Trajectory, interpolate};
+use super::interpolate::{Trajectory, interpolate_with};
 use super::machine::Machine;
+use super::path_control::PathControl;
 use super::servo::simulate_axis;
 
 /// Commanded and simulated motion with its contour error.
@@ -61,7 +62,25 @@ pub fn predict_program(
     period_s: f64,
     max_periods: usize,
 ) -> Result<ContourPrediction, Error> {
-    let commanded = interpolate(program, machine, period_s, max_periods)?;
+    predict_program_with(
+        machine,
+        program,
+        &PathControl::default(),
+        period_s,
+        max_periods,
+    )
+}
+
+/// [`predict_program`] with the program's path-control modes (read by
+/// [`gcode::parse_modes`]): exact stops and G64 P blends as the program asks.
+pub fn predict_program_with(
+    machine: &Machine,
+    program: &gcode::Program,
+    control: &PathControl,
+    period_s: f64,
+    max_periods: usize,
+) -> Result<ContourPrediction, Error> {
+    let commanded = interpolate_with(program, control, machine, period_s, max_periods)?;
     let actual = simulate_machine(machine, &commanded)?;
     let report = contour_error(
         &machine.kinematics,

@@ -14,8 +14,9 @@
 use super::contour::contour_error;
 use super::error::Error;
 use super::gcode::Program;
-use super::interpolate::{Trajectory, interpolate};
+use super::interpolate::{Trajectory, interpolate_with};
 use super::machine::Machine;
+use super::path_control::PathControl;
 use super::predict::{ContourPrediction, simulate_machine};
 
 /// How close every linear axis must come to the program's end point for the servo to count as
@@ -139,10 +140,11 @@ fn held(commanded: &Trajectory, extra: usize) -> Trajectory {
 pub fn predict_program_settled(
     machine: &Machine,
     program: &Program,
+    control: &PathControl,
     period_s: f64,
     max_periods: usize,
 ) -> Result<(ContourPrediction, Settle), Error> {
-    let commanded = interpolate(program, machine, period_s, max_periods)?;
+    let commanded = interpolate_with(program, control, machine, period_s, max_periods)?;
     let n = commanded.t.len();
     let end: Vec<f64> = commanded
         .axes

@@ -421,6 +421,80 @@ async fn the_simulation_runs_until_the_servo_settles(app: TestApp) {
 }
 on_both_backends!(the_simulation_runs_until_the_servo_settles);
 
+/// Path-control modes and the machine's controller (issue 39 item 2): G61 and G9 are read
+/// without a warning and stop the tool, LinuxCNC's segment cap slows 20 µm chords to
+/// 19.6 mm/s, and a bad controller is refused at PUT naming the field.
+async fn path_control_modes_and_the_controllers_limits(app: TestApp) {
+    put_machine(&app, "m", &xyz_kv(30.0, 0.0)).await;
+    let seconds = |b: &Value| b["t"].as_array().unwrap().last().unwrap().as_f64().unwrap();
+    let line = "G1 X10 F6000\nG1 X20\nG1 X30\n";
+    let r = contour(&app, "m", &json!({"gcode": line})).await;
+    let free: Value = r.json().await.unwrap();
+    for modes in [
+        "G61\n",
+        "G61.1\n",
+        "G9 ",
+        "G05.1 Q1\nG08 P1\nG64 P0.01\nG61\n",
+    ] {
+        let r = contour(
+            &app,
+            "m",
+            &json!({"gcode": format!("{modes}{line}"), "strict": true}),
+        )
+        .await;
+        assert_eq!(r.status(), 200, "{modes}");
+        let b: Value = r.json().await.unwrap();
+        assert_eq!(b["warnings"], json!([]), "{modes}");
+        assert!(
+            seconds(&b) > seconds(&free) + 0.01,
+            "{modes}: the stops take time"
+        );
+    }
+    let r = contour(&app, "m", &json!({"gcode": format!("G08 P0\n{line}")})).await;
+    let b: Value = r.json().await.unwrap();
+    assert!(
+        b["warnings"][0]
+            .as_str()
+            .unwrap()
+            .starts_with("line 1: G8 P0: look-ahead off")
+    );
+    // 1,000 chords of 20 µm: LinuxCNC's cap at 1 ms.
+    let mut chords = String::from("G1 F6000\n");
+    for k in 1..=1000 {
+        chords += &format!("X{:.3}\n", k as f64 * 0.02);
+    }
+    let mut linuxcnc = xyz_kv(30.0, 0.0);
+    linuxcnc["controller"] = json!({"kind": "linuxcnc"});
+    put_machine(&app, "lcnc", &linuxcnc).await;
+    let top = |b: &Value| -> f64 {
+        let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+        cmd.windows(2)
+            .map(|w| (w[1][0] - w[0][0]) / 0.001)
+            .fold(0.0, f64::max)
+    };
+    let body = json!({"gcode": chords});
+    let fast: Value = contour(&app, "m", &body).await.json().await.unwrap();
+    let capped: Value = contour(&app, "lcnc", &body).await.json().await.unwrap();
+    assert!((top(&fast) - 100.0).abs() < 1e-6, "{}", top(&fast));
+    assert!(
+        top(&capped) <= 0.02 / 1.02e-3 + 1e-9 && top(&capped) > 19.5,
+        "{}",
+        top(&capped)
+    );
+    let got: Value = app.get("/v1/machines/lcnc").await.json().await.unwrap();
+    assert_eq!(got["controller"], json!({"kind": "linuxcnc"}), "{got}");
+    let mut bad = xyz_kv(30.0, 0.0);
+    bad["controller"] = json!({"kind": "grbl", "lookahead_blocks": 0});
+    let r = app.put_json("/v1/machines/bad", &bad).await;
+    assert_problem(
+        r,
+        400,
+        &["controller.lookahead_blocks", "must be in 1..100000"],
+    )
+    .await;
+}
+on_both_backends!(path_control_modes_and_the_controllers_limits);
+
 #[test]
 fn cli_predicts_from_a_machine_file_and_names_bad_lines() {
     let dir = tempfile::tempdir().unwrap();

@@ -33,6 +33,11 @@ pub(crate) fn accepted() -> Vec<Value> {
                "axes": {"X": full, "Y": full, "Z": full,
                         "A": {"kv": 25.0, "kff": 0.6, "kp_v": 300.0, "ti_v": 0.02, "tc": 0.0008},
                         "C": {"kv": 25.0, "kff": 0.6, "kp_v": 300.0, "ti_v": 0.02, "tc": 0.0008}}}),
+        json!({"kinematics": "xyz", "axes": {"X": full, "Y": full, "Z": full},
+               "controller": {"kind": "linuxcnc"}}),
+        json!({"kinematics": "xyz", "axes": {"X": full, "Y": full, "Z": full},
+               "controller": {"kind": "grbl", "block_rate_hz": 400, "lookahead_blocks": 15,
+                              "segment_cap": false}}),
     ]
 }
 
@@ -112,6 +117,31 @@ pub(crate) fn refused() -> Vec<(Value, &'static str)> {
         (
             json!({"kinematics": "xyzac_table", "geometry": {"tool_length": 1e9}}),
             "geometry.tool_length",
+        ),
+        (
+            json!({"kinematics": "xyz", "controller": "linuxcnc"}),
+            "controller",
+        ),
+        (
+            json!({"kinematics": "xyz", "controller": {"kind": "mach3"}}),
+            "controller.kind",
+        ),
+        (json!({"kinematics": "xyz", "controller": {}}), "kind"),
+        (
+            json!({"kinematics": "xyz", "controller": {"kind": "grbl", "block_rate_hz": 0}}),
+            "controller.block_rate_hz",
+        ),
+        (
+            json!({"kinematics": "xyz", "controller": {"kind": "grbl", "lookahead_blocks": 0}}),
+            "controller.lookahead_blocks",
+        ),
+        (
+            json!({"kinematics": "xyz", "controller": {"kind": "grbl", "lookahead_blocks": 2.5}}),
+            "controller.lookahead_blocks",
+        ),
+        (
+            json!({"kinematics": "xyz", "controller": {"kind": "grbl", "buffer": 16}}),
+            "buffer",
         ),
     ]
 }

@@ -65,12 +65,7 @@ impl Reader<'_> {
                 self.notes.note(line, name, "tool length compensation cancelled", Accepted)?;
             }
             540..=590 if g % 10 == 0 => self.work_offset(line, g)?,
-            610 | 611 | 640 => self.notes.note(
-                line,
-                name,
-                "path-control mode is not modelled: the service's own look-ahead is used",
-                Refused,
-            )?,
+            610 | 611 | 640 | 90 | 51 | 80 => self.path_code(line, g, c)?,
             150 | 500 | 501 | 670 | 690 => self.notes.note(
                 line,
                 name,

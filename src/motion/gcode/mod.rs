@@ -2,16 +2,17 @@
 //! Sinumerik TRAORI/TRAFOOF.
 //!
 //! Files: `lexer` (comments, words), `reader` (modal state, what a line asks for), `codes`
-//! (each G code, and the words that move nothing), `moves`
-//! (blocks, dwell, cycles in force, M codes), `frame` (work offsets, tool lengths,
-//! G28/G30/G53), `cycles` (canned drilling cycles expanded), `options` (options and
-//! warnings), `trace` (per-line frames and word positions for program rewriters) and the
-//! tests.
+//! (each G code, and the words that move nothing), `moves` (blocks, dwell, cycles in force,
+//! M codes), `frame` (work offsets, tool lengths, G28/G30/G53), `modes` (path control: G61,
+//! G61.1, G9, G64 P, G05.1, G08), `cycles` (canned drilling cycles expanded), `options`
+//! (options and warnings), `trace` (per-line frames and word positions for program
+//! rewriters) and the tests.
 
 mod codes;
 mod cycles;
 mod frame;
 mod lexer;
+mod modes;
 mod moves;
 mod options;
 mod reader;
@@ -21,5 +22,5 @@ mod trace;
 
 pub use crate::motion::program::{Block, Feed, Motion, Plane, Pose, Program};
 pub use options::{ReadOptions, Warning};
-pub use reader::{parse, parse_traced, parse_with};
+pub use reader::{parse, parse_modes, parse_traced, parse_with};
 pub use trace::{LineFrame, WordSpan, word_spans};

@@ -11,7 +11,8 @@
 //! lengths, G28/G53 with a caller-given home, G30 with a caller-given G30 position. Passed
 //! through with a warning (each word once, [`Warning`]), or refused under `strict`: comments,
 //! `%`, O numbers (words after one on its line are read), N, S, T, D, H, M codes (vendor ones
-//! included), F-only lines, G40/G41/G42, G49, G61/G64, G80, what a cycle does that the path
+//! included), F-only lines, G40/G41/G42, G49, G61/G64 (read as path-control modes by
+//! [`parse_modes`]: `super::modes`), G80, what a cycle does that the path
 //! cannot show (pecks' clearance, tapping's spindle reversal, G86-G88's spindle stop and
 //! manual retract), block delete `/` at the start of a block or in mid-block (read with the
 //! switch off), offsets and tool lengths the caller did not give, G28/G30 without their
@@ -24,9 +25,11 @@
 
 use super::cycles::Cycle;
 use super::lexer::{Lexed, lex, word_name};
+use super::modes::{PathModal, PathWords};
 use super::options::{Legacy, Mode, Notes, ReadOptions, Warning};
 use super::trace::LineFrame;
 use crate::motion::error::Error;
+use crate::motion::path_control::PathControl;
 use crate::motion::program::{Plane, Pose, Program};
 
 pub(super) const MM_PER_INCH: f64 = 25.4;
@@ -62,6 +65,8 @@ pub(super) struct Modal {
     pub(super) unknown: [Option<usize>; 3],
     /// Last value of each unmodelled axis word B, U, V, W.
     pub(super) still_axes: [Option<f64>; 4],
+    /// Path-control modes in force (G61/G64, look-ahead on/off).
+    pub(super) path: PathModal,
 }
 
 impl Modal {
@@ -78,7 +83,7 @@ impl Modal {
 /// still move the machine); the interpolator drops those that move nothing.
 /// Never panics; every rejected input yields a typed [`Error`] naming the 1-based line.
 pub fn parse(text: &str) -> Result<Program, Error> {
-    read(text, &ReadOptions::default(), Mode::Legacy, None).map(|(p, _)| p)
+    read(text, &ReadOptions::default(), Mode::Legacy, None, None).map(|(p, _)| p)
 }
 
 /// Parses a whole program with `options`: lenient (the default: words that do not move an
@@ -93,7 +98,26 @@ pub fn parse_with(text: &str, options: &ReadOptions) -> Result<(Program, Vec<War
     } else {
         Mode::Lenient
     };
-    read(text, options, mode, None)
+    read(text, options, mode, None, None)
+}
+
+/// [`parse_with`] that also reads the program's path-control codes (G61, G61.1, G9, G64 P,
+/// G05.1 Q, G08 P; `super::modes`) into how each block ends, for a caller that interpolates
+/// with them (`crate::motion::interpolate::interpolate_with`). [`parse_with`] and
+/// [`parse_traced`] answer those codes as before they were modelled (G61/G64 a warning, the
+/// others unsupported), since their callers plan every junction in the service's look-ahead.
+pub fn parse_modes(
+    text: &str,
+    options: &ReadOptions,
+) -> Result<(Program, PathControl, Vec<Warning>), Error> {
+    let mode = if options.strict {
+        Mode::Strict
+    } else {
+        Mode::Lenient
+    };
+    let mut path = PathControl::default();
+    let (p, w) = read(text, options, mode, None, Some(&mut path))?;
+    Ok((p, path, w))
 }
 
 /// [`parse_with`] that also answers the reader's frame at the end of every line it read
@@ -109,7 +133,7 @@ pub fn parse_traced(
         Mode::Lenient
     };
     let mut frames = Vec::new();
-    let (p, w) = read(text, options, mode, Some(&mut frames))?;
+    let (p, w) = read(text, options, mode, Some(&mut frames), None)?;
     Ok((p, w, frames))
 }
 
@@ -118,6 +142,7 @@ fn read(
     opts: &ReadOptions,
     mode: Mode,
     mut trace: Option<&mut Vec<LineFrame>>,
+    path: Option<&mut PathControl>,
 ) -> Result<(Program, Vec<Warning>), Error> {
     let mut r = Reader {
         opts,
@@ -138,13 +163,24 @@ fn read(
             to_initial: true,
             unknown: [None; 3],
             still_axes: [None; 4],
+            path: PathModal::default(),
         },
         prog: Program::default(),
+        path,
+        stop_once: false,
     };
     for (idx, raw) in text.lines().enumerate() {
         let line = idx + 1;
         let lexed = lex(raw, line)?;
+        let before = r.prog.blocks.len();
+        r.stop_once = false;
         let ends = r.apply(line, &lexed)?;
+        if r.prog.blocks.len() > before {
+            let end = r.block_end(r.stop_once);
+            if let Some(path) = r.path.as_deref_mut() {
+                path.set(line, end);
+            }
+        }
         if let Some(frames) = trace.as_deref_mut() {
             frames.push(LineFrame {
                 line,
@@ -169,6 +205,10 @@ pub(super) struct Reader<'a> {
     pub(super) notes: Notes,
     pub(super) m: Modal,
     pub(super) prog: Program,
+    /// How each block ends, when the caller reads path-control modes ([`parse_modes`]).
+    pub(super) path: Option<&'a mut PathControl>,
+    /// G9 on the line being read.
+    pub(super) stop_once: bool,
 }
 
 /// What the G words of one line asked for, beyond modal state.
@@ -179,6 +219,7 @@ pub(super) struct LineCodes {
     pub(super) tool_length: bool,
     pub(super) home: Option<u32>,
     pub(super) cycle: Option<u32>,
+    pub(super) path: PathWords,
 }
 
 impl Reader<'_> {
@@ -191,6 +232,8 @@ impl Reader<'_> {
         for &g in &l.gcodes {
             self.g_code(line, g, &mut c)?;
         }
+        self.path_words(line, l, &mut c)?;
+        self.stop_once = c.path.stop_once;
         for kw in &l.keywords {
             self.m.rtcp = *kw == "TRAORI";
         }
@@ -207,7 +250,7 @@ impl Reader<'_> {
             self.notes.note(line, word_name('H', h), what, Accepted)?;
         }
         if let Some(q) = w.get(b'Q') {
-            if c.cycle.is_none() && self.m.cycle.is_none() {
+            if c.cycle.is_none() && self.m.cycle.is_none() && !c.path.q {
                 self.notes
                     .note(line, word_name('Q', q), "not used by the motion", Refused)?;
             }
@@ -229,7 +272,7 @@ impl Reader<'_> {
         }
         if let Some(p) = w.get(b'P') {
             let in_cycle = c.cycle.is_some() || self.m.cycle.is_some();
-            if !in_cycle && !c.dwell {
+            if !in_cycle && !c.dwell && !c.path.p {
                 self.notes
                     .note(line, word_name('P', p), "not used by the motion", Accepted)?;
             }
@@ -263,7 +306,10 @@ impl Reader<'_> {
             }
             return Ok(ends);
         }
-        let has_arc_words = [b'I', b'J', b'K', b'R'].iter().any(|&k| w.get(k).is_some());
+        // G5.1's R is its machining condition level, not an arc radius.
+        let has_arc_words = [b'I', b'J', b'K', b'R']
+            .iter()
+            .any(|&k| w.get(k).is_some() && !(k == b'R' && c.path.r));
         if !has_axis {
             let arc = matches!(self.m.motion, Some(MotionMode::ArcCw | MotionMode::ArcCcw));
             if arc && w.get(b'R').is_none() && has_arc_words {

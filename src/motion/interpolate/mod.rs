@@ -20,6 +20,11 @@
 //! within the period: the speed through it is about `√(max_accel·R)`, the centripetal limit
 //! of the radius `R` the chords approximate (`windowed_turn`).
 //!
+//! The program's path-control modes (exact stop, G64 P blending; [`PathControl`]) are applied
+//! by `modes` and `blend` ([`interpolate_with`]), the machine's controller limits on dense
+//! blocks (segment cap, block rate, look-ahead depth; [`Machine::controller`]) by
+//! `controller`; without either the planning is the service's own, as above.
+//!
 //! Hand-written: no crate implements Zhang & Chen 2025's RTCP feed distribution, and the S-curve
 //! planner must see the machine axes through the inverse kinematics.
 
@@ -27,6 +32,7 @@ use super::error::Error;
 use super::gcode::{Block, Feed, Motion, Program};
 use super::kinematics::Kinematics;
 use super::machine::Machine;
+use super::path_control::PathControl;
 use chain::{over_caps, plan_units};
 
 /// The interpolated command: one row per period.
@@ -211,14 +217,35 @@ fn windowed_turn(items: &[(&Block, Option<Seg>)], k: usize, half: f64) -> [f64; 
 }
 
 /// Interpolates `program` on `machine` every `period_s` seconds (machine at rest at the start
-/// and at the end). Fails with [`Error::TooManyPeriods`] before allocating when the program
-/// needs more than `max_periods` samples.
+/// and at the end), every junction in the service's look-ahead: [`interpolate_with`] and no
+/// path-control modes (the machine's controller limits still apply).
+pub fn interpolate(
+    program: &Program,
+    machine: &Machine,
+    period_s: f64,
+    max_periods: usize,
+) -> Result<Trajectory, Error> {
+    interpolate_with(
+        program,
+        &PathControl::default(),
+        machine,
+        period_s,
+        max_periods,
+    )
+}
+
+/// Interpolates `program` on `machine` every `period_s` seconds (machine at rest at the start
+/// and at the end), each block ending as `control` says (exact stop, G64 P blend, or the
+/// look-ahead; `modes`) and within the machine's controller limits (`controller`). Fails
+/// with [`Error::TooManyPeriods`] before allocating when the program needs more than
+/// `max_periods` samples.
 ///
 /// The first feed block after RTCP is switched on or off starts from where the machine
 /// actually is (its position re-read in the new interpretation), as controllers do; an arc
 /// there is rejected because its centre would refer to the other interpretation.
-pub fn interpolate(
+pub fn interpolate_with(
     program: &Program,
+    control: &PathControl,
     machine: &Machine,
     period_s: f64,
     max_periods: usize,
@@ -271,6 +298,7 @@ pub fn interpolate(
         q_cur = axes_at(kin, &b, 1.0);
         blocks.push(b);
     }
+    let blocks = modes::blend_corners(blocks, control, machine);
     // Planning segments; dwells carry None, zero-length moves (possible after re-basing) go.
     let mut items: Vec<(&Block, Option<Seg>)> = Vec::with_capacity(blocks.len());
     for b in &blocks {
@@ -286,6 +314,7 @@ pub fn interpolate(
     if !items.iter().any(|(_, s)| s.is_some()) {
         return Err(Error::EmptyProgram);
     }
+    controller::cap_blocks(&mut items, &machine.controller, period_s);
     // Junction speeds: v[k] is the speed entering item k; v[n] = 0.
     let n = items.len();
     let mut v = vec![0.0f64; n + 1];
@@ -323,6 +352,8 @@ pub fn interpolate(
         }
         v[k] = vj;
     }
+    controller::cap_junctions(&items, &machine.controller, &mut v);
+    modes::stop_junctions(&items, control, &mut v);
     // Planning units: chains of straight blocks joined where the junction does not slow the
     // tool below the blocks' speed caps are planned as one S-curve, so acceleration carries
     // across those junctions (as a controller's look-ahead does) instead of starting each
@@ -428,6 +459,9 @@ pub fn interpolate(
     })
 }
 
+mod blend;
 mod chain;
+mod controller;
+mod modes;
 #[cfg(test)]
 mod tests;

@@ -19,7 +19,8 @@ fn the_run_out_of_a_first_order_loop_settles_as_its_closed_form() {
     let m = xyz(20.0, 0.0);
     let program = gcode::parse(SQUARE).unwrap();
     let plain = predict_program(&m, &program, 1e-3, 1_000_000).unwrap();
-    let (p, s) = predict_program_settled(&m, &program, 1e-3, 1_000_000).unwrap();
+    let (p, s) =
+        predict_program_settled(&m, &program, &Default::default(), 1e-3, 1_000_000).unwrap();
     let n = plain.commanded.t.len();
     // Up to the command's end the prediction is the plain one, sample for sample.
     for k in 0..3 {
@@ -51,11 +52,25 @@ fn an_ideal_servo_needs_no_run_out_and_a_slow_one_is_warned_of() {
     let program = gcode::parse(SQUARE).unwrap();
     // kff = 1 with ideal inner loops: the axes are on the command, so nothing is added.
     let plain = predict_program(&xyz(20.0, 1.0), &program, 1e-3, 1_000_000).unwrap();
-    let (p, s) = predict_program_settled(&xyz(20.0, 1.0), &program, 1e-3, 1_000_000).unwrap();
+    let (p, s) = predict_program_settled(
+        &xyz(20.0, 1.0),
+        &program,
+        &Default::default(),
+        1e-3,
+        1_000_000,
+    )
+    .unwrap();
     assert_eq!(p, plain);
     assert!(s.settled && s.settle_s == 0.0, "{s:?}");
     // kv = 0.5 1/s: from a lag of about 50 mm, 0.1 µm takes 26 s, more than the cap.
-    let (p, s) = predict_program_settled(&xyz(0.5, 0.0), &program, 1e-3, 1_000_000).unwrap();
+    let (p, s) = predict_program_settled(
+        &xyz(0.5, 0.0),
+        &program,
+        &Default::default(),
+        1e-3,
+        1_000_000,
+    )
+    .unwrap();
     assert!(!s.settled, "{s:?}");
     assert!((s.settle_s - MAX_SETTLE_S).abs() < 2e-3, "{s:?}");
     assert!(s.lag_at_last_sample_mm > SETTLE_TOLERANCE_MM);
