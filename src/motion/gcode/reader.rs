@@ -22,6 +22,8 @@
 //! [`parse`] is the reader as it was before warnings: what it accepted then passes silently,
 //! everything else is [`Error::UnsupportedCode`]. Tests are in `super::tests`.
 
+use super::cutter::Cutter;
+use super::cutter_reader::CompCode;
 use super::cycles::Cycle;
 use super::lexer::{Lexed, lex, word_name};
 use super::options::{Legacy, Mode, Notes, ReadOptions, Warning};
@@ -62,6 +64,10 @@ pub(super) struct Modal {
     pub(super) unknown: [Option<usize>; 3],
     /// Last value of each unmodelled axis word B, U, V, W.
     pub(super) still_axes: [Option<f64>; 4],
+    /// Tool selected by the last T word.
+    pub(super) selected_tool: Option<u32>,
+    /// Tool in the spindle (the selected one at the last M6).
+    pub(super) spindle_tool: Option<u32>,
 }
 
 impl Modal {
@@ -138,11 +144,17 @@ fn read(
             to_initial: true,
             unknown: [None; 3],
             still_axes: [None; 4],
+            selected_tool: None,
+            spindle_tool: None,
         },
         prog: Program::default(),
+        cutter: None,
+        after_exit: None,
     };
+    let mut last = 0;
     for (idx, raw) in text.lines().enumerate() {
         let line = idx + 1;
+        last = line;
         let lexed = lex(raw, line)?;
         let ends = r.apply(line, &lexed)?;
         if let Some(frames) = trace.as_deref_mut() {
@@ -160,6 +172,8 @@ fn read(
             break;
         }
     }
+    // The program's end cancels cutter compensation: its held moves end where they are.
+    r.cutter_off(last)?;
     Ok((r.prog, r.notes.list))
 }
 
@@ -168,6 +182,10 @@ pub(super) struct Reader<'a> {
     pub(super) notes: Notes,
     pub(super) m: Modal,
     pub(super) prog: Program,
+    /// Cutter radius compensation in force (G41/G42 with a tool diameter).
+    pub(super) cutter: Option<Cutter>,
+    /// The tool centre right after G40: where the next move starts.
+    pub(super) after_exit: Option<Pose>,
 }
 
 /// What the G words of one line asked for, beyond modal state.
@@ -178,6 +196,12 @@ pub(super) struct LineCodes {
     pub(super) tool_length: bool,
     pub(super) home: Option<u32>,
     pub(super) cycle: Option<u32>,
+    /// G40, G41 or G42.
+    pub(super) comp: Option<CompCode>,
+    /// G43 or G49 (the tool length changes).
+    pub(super) tool_offset: bool,
+    /// G54..G59.
+    pub(super) work_offset: bool,
 }
 
 impl Reader<'_> {
@@ -193,7 +217,11 @@ impl Reader<'_> {
         for kw in &l.keywords {
             self.m.rtcp = *kw == "TRAORI";
         }
+        if let Some(t) = w.get(b'T').filter(|t| *t >= 0.0 && t.fract() == 0.0) {
+            self.m.selected_tool = Some(t as u32);
+        }
         let ends = self.m_codes(line, &l.mcodes)?;
+        self.cutter_codes(line, &c, l)?;
         self.still_axes(line, l)?;
         if c.tool_length {
             self.tool_length(line, w.get(b'H'))?;
