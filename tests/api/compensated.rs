@@ -141,10 +141,7 @@ async fn assert_valid(
             .get(&p.map(f64::to_bits))
             .unwrap_or_else(|| panic!("{tag}: e({p:?}) was not fetched"))
     };
-    let rs = crate::rs274::find();
-    if rs.is_none() {
-        println!("SKIPPED (the rs274 half of the check): rs274 not installed");
-    }
+    let rs = crate::rs274::required();
     let dir = tempfile::tempdir().unwrap();
     let asked = crate::valid::Asked {
         error: volumetric.then_some(&lookup as &dyn Fn([f64; 3]) -> [f64; 3]),

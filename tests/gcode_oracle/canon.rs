@@ -37,6 +37,12 @@ pub const DIALECT_F_WITH_UNITS: &str = "an F on the line of a G20/G21: LinuxCNC 
      before it changes units (its order of execution), Fanuc (truecut) reads the F in the \
      line's new unit";
 
+/// Under G93 LinuxCNC runs no block slower than 0.1 program units a minute.
+pub const DIALECT_G93_FLOOR: &str = "G93 on a block so short that 1/F minutes is slower than 0.1 \
+     units/min: LinuxCNC runs it at 0.1 units/min, Fanuc (truecut) takes the 1/F minutes";
+/// The floor of [`DIALECT_G93_FLOOR`], program units per minute.
+const G93_FLOOR_PER_MIN: f64 = 0.1;
+
 /// Largest |difference| of two exact numbers, mm (or mm/min).
 pub const TOLERANCE_MM: f64 = 1e-6;
 
@@ -365,7 +371,9 @@ pub fn compare(want: &[Canon], got: &[Canon], how: Match) -> Result<Counts, Stri
         match (w.feed_mm_min, g.feed_mm_min) {
             (Some(a), Some(b)) => {
                 let slack = 0.5e-4 * w.feed_unit_mm + 1e-9 * a.abs();
-                if beyond(a, b, slack) > 0.0 {
+                let floor = G93_FLOOR_PER_MIN * w.feed_unit_mm;
+                let floored = beyond(a, floor, 0.5e-4 * w.feed_unit_mm) == 0.0 && b < floor;
+                if beyond(a, b, slack) > 0.0 && !floored {
                     return fail("feed rates differ".into());
                 }
                 c.feed_rates += 1;

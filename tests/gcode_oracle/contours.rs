@@ -123,7 +123,8 @@ impl Gen {
             let r = ((centre[0] - self.pos[0]) as f64).hypot((centre[1] - self.pos[1]) as f64);
             let left = dx * (centre[1] as f64 - a[1]) - dy * (centre[0] as f64 - a[0]) > 0.0;
             let major = left == cw;
-            let r = r.round() as i64;
+            // Rounded up, and never short of half the chord (both readers refuse that).
+            let r = (r.ceil() as i64).max((dx.hypot(dy) / 2.0).ceil() as i64 + 1);
             format!("R{}", self.fmt(if major { -r } else { r }))
         } else {
             format!(
@@ -255,7 +256,7 @@ pub fn program(seed: u64) -> Contour {
     };
     g.inch = g.rng.random_bool(0.3);
     let unit = if g.inch { "G20" } else { "G21" };
-    let diameter_mm = (g.rng.random_range(1.0..8.0) * 1000.0f64).round() / 1000.0;
+    let diameter_mm = (g.rng.random_range(0.5..5.0) * 1000.0f64).round() / 1000.0;
     g.push(format!("{unit} G90 G17 G94 G40 G49 G80"));
     g.push("T1 M6".into());
     g.push("S5000 M3".into());

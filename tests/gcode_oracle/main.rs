@@ -1,31 +1,49 @@
-//! LinuxCNC's interpreter as the oracle of truecut's G-code reader (issue 24, item 1).
+//! LinuxCNC's interpreter as the oracle of truecut's G-code reader (issue 24, item 1; issue
+//! 39, item 4).
 //!
 //! `rs274` (Debian `linuxcnc-uspace`; `.ci/run` installs it) is the interpreter that runs
-//! LinuxCNC machines. Both read the same program; the feed moves' end points (STRAIGHT_FEED,
-//! ARC_FEED against truecut's G1/G2/G3 and cycle feed blocks) must agree in order, line by
-//! line, within 1e-6 mm. Compared: (a) every example program LinuxCNC ships (its `ncfiles`)
-//! that uses only what truecut models — the others are listed with the reason; (b) 2,000
-//! seeded random programs (`generate`). Feed moves of zero length are dropped on both sides
-//! (they move nothing; the two interpreters differ in whether they emit them).
+//! LinuxCNC machines. Both read the same program and every move it makes is compared in
+//! order (`canon`): its kind (traverse, straight feed, arc), source line and end point; an
+//! arc's plane, centre and turns (the sign is its direction); the feed rate in force (mm/min;
+//! under G93 the rate of 1/F minutes over the programmed length). End points within 1e-6 mm;
+//! centres and feeds within that plus the printout's rounding (four decimals). Moves of zero
+//! length other than arcs are dropped on both sides. Compared: (a) 2,000 seeded random
+//! programs (`generate`); (b) every example program LinuxCNC ships (its `ncfiles`) that uses
+//! only what truecut models, with a tool table of real diameters (`examples`; the others are
+//! listed with the reason); (c) the real posts of `tests/data/programs` (`posts`); (d) cutter
+//! radius compensation: generated G41/G42 contours and the G41 pocket with real diameters
+//! (`cutter`, `contours`). Each test prints its counts.
 //!
 //! Dialect differences, named (openapi.yaml and the README say truecut follows Fanuc):
 //! - [`DIALECT_TAP_BORE_RETRACT`]: G84/G74 tapping and G89 boring with G98 — LinuxCNC feeds
 //!   out all the way to the initial level; Fanuc feeds out to R and rapids the rest. The
-//!   oracle's feed-out end is clipped to R on those lines.
+//!   oracle's feed-out is cut at R and rapids on, on those lines.
+//! - [`DIALECT_G98_ACROSS`]: a G98 hole after G99 holes — LinuxCNC rises to the initial level
+//!   while it moves across; Fanuc moves across at R. The oracle's rise is flattened.
+//! - [`DIALECT_G93_FLOOR`]: G93 on a very short block — LinuxCNC runs no block slower than 0.1
+//!   units/min; Fanuc takes the 1/F minutes. Where rs274 prints that floor and truecut's rate
+//!   is below it, the rates are not held against each other.
+//! - [`DIALECT_F_WITH_UNITS`]: an F on a G20/G21 line — LinuxCNC sets it before the unit
+//!   changes; Fanuc reads it in the new unit. The oracle's feed is read in the new unit.
 //! - [`DIALECT_G28_UNSTORED`]: G28 with no stored position — LinuxCNC goes to 0 (parameters
 //!   5161-5163 default to zero); truecut does not guess (the axes are unknown without
 //!   `home`). Tested by name below; the comparisons give truecut home and G30 position at
 //!   machine zero, as rs274 has them without a parameter file.
+//! - [`DIALECT_G88_RETRACT`]: G88 — LinuxCNC stops and leaves the retract to the operator (no
+//!   move); Fanuc rapids out on cycle start. Tested by name below; not generated.
 //! - Not generated because the dialects differ in the words themselves: G87 (LinuxCNC back
 //!   boring takes I J K with Z as the bottom; Fanuc takes Q with R as the bottom), dwell P
-//!   (seconds in LinuxCNC, ms in Fanuc: only time changes), G86/G88/G89 P (required by
-//!   LinuxCNC), block delete `/` in mid-block (refused by LinuxCNC, optional words in Fanuc
-//!   and Haas; tested in the unit tests).
+//!   (seconds in LinuxCNC, ms in Fanuc: only time changes; dwells are not compared),
+//!   G86/G89 P (required by LinuxCNC), block delete `/` in mid-block (refused by LinuxCNC,
+//!   optional words in Fanuc and Haas; tested in the unit tests).
 //!
 //! Module `compensated` holds the service's compensated programs to the same two readers
 //! (issue 24, item 3; the check is `valid`, shared with the HTTP tests).
 //!
-//! Without rs274 the tests print `SKIPPED: rs274 not installed` and pass.
+//! rs274 is required: without it these tests fail saying how to install it, unless
+//! `TRUECUT_NO_RS274=1` asks to run without the oracle (they then say so loudly and pass).
+//! To look at one disagreement: `TRUECUT_ORACLE_SEED=<seed>` (generated programs) or
+//! `TRUECUT_ORACLE_CONTOUR=<seed>` (contours) prints both readings move by move.
 
 mod canon;
 mod compensated;
@@ -41,9 +59,16 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicUsize, Ordering};
 
-use canon::{Counts, DIALECT_TAP_BORE_RETRACT, Match, TOLERANCE_MM};
+use canon::{
+    Counts, DIALECT_F_WITH_UNITS, DIALECT_G93_FLOOR, DIALECT_G98_ACROSS, DIALECT_TAP_BORE_RETRACT,
+    Match, TOLERANCE_MM,
+};
 use truecut::motion::gcode::{ReadOptions, parse_with};
 
+/// G88: who retracts.
+const DIALECT_G88_RETRACT: &str = "G88: LinuxCNC stops at the bottom and leaves the retract \
+     to the operator (no move), Fanuc (truecut) rapids out to R or the initial level on cycle \
+     start";
 /// G28 with no stored position.
 const DIALECT_G28_UNSTORED: &str = "G28 with no stored position: LinuxCNC moves to 0 \
      (parameters 5161-5163), truecut leaves the axes unknown unless `home` is given";
@@ -164,7 +189,8 @@ fn generated_programs_agree_with_linuxcnc() {
     }
     println!(
         "generated: {} programs compared with rs274, {} disagree; {}; tolerance {TOLERANCE_MM} \
-         mm; dialect adjustment: {DIALECT_TAP_BORE_RETRACT}",
+         mm; dialect adjustments: {DIALECT_TAP_BORE_RETRACT}; {DIALECT_G98_ACROSS}; \
+         {DIALECT_F_WITH_UNITS}; {DIALECT_G93_FLOOR}",
         results.len(),
         failures.len(),
         counts_line(&total)
@@ -221,4 +247,34 @@ fn dialect_g28_without_a_stored_position_is_named() {
     };
     let (p, _) = parse_with(text, &opts).unwrap();
     assert_eq!(p.blocks.last().unwrap().end.xyz, want[0].end);
+}
+
+#[test]
+fn dialect_g88_manual_retract_is_named() {
+    let Some(rs) = oracle() else { return };
+    println!("dialect difference: {DIALECT_G88_RETRACT}");
+    let text = "N1 G21 G90 G17 G94 M3\nN2 G0 X0 Y0 Z10\nN3 G99 G88 X5 Y5 Z-3 R2 P0.5 F100\n\
+                N4 G80\nN5 G0 Z20\nN6 M2\n";
+    let dir = tempfile::tempdir().unwrap();
+    let file = dir.path().join("g88.ngc");
+    std::fs::write(&file, text).unwrap();
+    let moves = rs274::run(&rs, &file).unwrap();
+    let on_3 = |c: &Vec<canon::Canon>| -> Vec<(canon::Kind, [f64; 3])> {
+        c.iter()
+            .filter(|m| m.line == 3)
+            .map(|m| (m.kind, m.end))
+            .collect()
+    };
+    let want = canon::from_oracle(&moves, &canon::cycle_lines(text));
+    let (p, _) = parse_with(text, &oracle_options(&[])).unwrap();
+    let got = canon::from_blocks(&p.blocks);
+    use canon::Kind::{Feed, Traverse};
+    let (xy, r, bottom) = ([5.0, 5.0, 10.0], [5.0, 5.0, 2.0], [5.0, 5.0, -3.0]);
+    // LinuxCNC: across, down to R, feed to the bottom, and no move out.
+    assert_eq!(on_3(&want), [(Traverse, xy), (Traverse, r), (Feed, bottom)]);
+    // truecut (Fanuc): the same, then a rapid out to R on cycle start.
+    assert_eq!(
+        on_3(&got),
+        [(Traverse, xy), (Traverse, r), (Feed, bottom), (Traverse, r)]
+    );
 }

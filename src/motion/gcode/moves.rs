@@ -18,13 +18,12 @@ impl Reader<'_> {
     pub(super) fn m_codes(&mut self, line: usize, mcodes: &[u32]) -> Result<bool, Error> {
         let mut ends = false;
         for &mc in mcodes {
-            if matches!(mc, 0 | 1 | 6 | 60) && self.cutter.is_some() {
-                let what = if mc == 6 {
-                    "a tool change (M6)"
-                } else {
-                    "a program stop"
+            if matches!(mc, 0 | 1 | 6 | 60) {
+                let what = match mc {
+                    6 => "a tool change (M6)".to_string(),
+                    _ => format!("a program stop (M{mc})"),
                 };
-                self.refuse_under_cutter(line, &format!("{what} M{mc}"))?;
+                self.refuse_under_cutter(line, &what)?;
             }
             if mc == 6 {
                 self.m.spindle_tool = self.m.selected_tool;

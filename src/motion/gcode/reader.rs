@@ -8,10 +8,12 @@
 //! (absolute / incremental arc centres), G93/G94, G43.4/G49 and TRAORI/TRAFOOF (RTCP), modal
 //! motion lines without a G word, canned cycles G73/G74/G81..G89 with G98/G99 (G80 cancels;
 //! `super::cycles`), G54..G59 with caller-given offsets, G43 H with caller-given tool
-//! lengths, G28/G53 with a caller-given home, G30 with a caller-given G30 position. Passed
+//! lengths, G28/G53 with a caller-given home, G30 with a caller-given G30 position, G41/G42
+//! with caller-given tool diameters (the tool-centre path as LinuxCNC offsets it in XY;
+//! `super::cutter_reader`) and G40. Passed
 //! through with a warning (each word once, [`Warning`]), or refused under `strict`: comments,
 //! `%`, O numbers (words after one on its line are read), N, S, T, D, H, M codes (vendor ones
-//! included), F-only lines, G40/G41/G42, G49, G61/G64, G80, what a cycle does that the path
+//! included), F-only lines, G41/G42 without tool diameters, G49, G61/G64, G80, what a cycle does that the path
 //! cannot show (pecks' clearance, tapping's spindle reversal, G86-G88's spindle stop and
 //! manual retract), block delete `/` at the start of a block or in mid-block (read with the
 //! switch off), offsets and tool lengths the caller did not give, G28/G30 without their
