@@ -90,7 +90,7 @@ impl Cutter {
         // An "h": over an arc and on along a line beside it; stay outside (LinuxCNC forces it).
         let h_shape = beta > PI - CORNER_RAD
             && held_arc.is_some_and(|(_, turn, _)| inside(side.flipped(), turn));
-        let concave = beta < -CORNER_RAD || beta > PI + CORNER_RAD || h_shape;
+        let concave = !(-CORNER_RAD..=PI + CORNER_RAD).contains(&beta) || h_shape;
         if concave {
             let corner = match held_arc {
                 None => {
@@ -187,8 +187,7 @@ impl Cutter {
         };
         let new_end = polar(e, r, gamma);
         let mut out = Vec::new();
-        let concave = beta < -CORNER_RAD
-            || beta > PI + CORNER_RAD
+        let concave = !(-CORNER_RAD..=PI + CORNER_RAD).contains(&beta)
             || ((beta - PI).abs() < CORNER_RAD && !tool_inside);
         if concave {
             let corner = match self.held_arc() {
