@@ -1,7 +1,8 @@
 //! Seeded random contour programs with cutter radius compensation for the oracle: one or two
 //! closed star-shaped contours each (so they have inside and outside corners), edges of lines
-//! and G2/G3 arcs (IJK and R, bulging in or out), cut with G41 or G42 (the material inside or
-//! outside, clockwise or counter-clockwise), entered by a G1 (sometimes a G0) from outside,
+//! and G2/G3 arcs (IJK and R, bulging in or out) and now and then a G0, cut with G41 or G42
+//! (the material inside or outside, clockwise or counter-clockwise), entered from outside by
+//! a G1 (sometimes a G0 or an arc),
 //! left by G40 with a G1; sometimes in G91, under G93 inverse time, with Z-only moves and
 //! dwells inside the compensation, without D (the tool of T1 M6), in G20 or G21. The tool's
 //! diameter is drawn per program and given to both readers.
@@ -93,17 +94,22 @@ impl Gen {
         }
     }
 
+    /// A G1 (now and then a G0) to `to`.
     fn line_to(&mut self, to: [i64; 2]) {
         let words = self.xy(to);
-        let f = self.feed(false);
-        self.push(format!("G1 {words}{f}"));
+        if self.rng.random_bool(0.08) {
+            self.push(format!("G0 {words}"));
+        } else {
+            let f = self.feed(false);
+            self.push(format!("G1 {words}{f}"));
+        }
         self.pos[0] = to[0];
         self.pos[1] = to[1];
     }
 
-    /// An arc to `to`: its centre off the chord's middle by up to 1.2 half chords either way,
-    /// either direction, as I J or as R.
-    fn arc_to(&mut self, to: [i64; 2]) {
+    /// An arc to `to` (its line opening with `prefix`): its centre off the chord's middle by
+    /// up to 1.2 half chords either way, either direction, as I J or as R.
+    fn arc_to(&mut self, prefix: &str, to: [i64; 2]) {
         let (a, b) = (
             [self.pos[0] as f64, self.pos[1] as f64],
             [to[0] as f64, to[1] as f64],
@@ -134,7 +140,7 @@ impl Gen {
             )
         };
         let f = self.feed(false);
-        self.push(format!("{code} {words} {centre_words}{f}"));
+        self.push(format!("{prefix}{code} {words} {centre_words}{f}"));
         self.pos[0] = to[0];
         self.pos[1] = to[1];
     }
@@ -200,18 +206,20 @@ impl Gen {
         };
         let d = if self.rng.random_bool(0.7) { " D1" } else { "" };
         let words = self.xy(vertices[0]);
-        if self.rng.random_bool(0.1) {
-            self.push(format!("{side}{d} G0 {words}"));
-        } else {
-            let f = self.feed(false);
-            self.push(format!("{side}{d} G1 {words}{f}"));
+        match self.rng.random_range(0..10) {
+            0 => self.push(format!("{side}{d} G0 {words}")),
+            1 | 2 => self.arc_to(&format!("{side}{d} "), vertices[0]),
+            _ => {
+                let f = self.feed(false);
+                self.push(format!("{side}{d} G1 {words}{f}"));
+            }
         }
         self.pos[0] = vertices[0][0];
         self.pos[1] = vertices[0][1];
         for i in 1..=n {
             let to = vertices[i % n];
             if self.rng.random_bool(0.4) {
-                self.arc_to(to);
+                self.arc_to("", to);
             } else {
                 self.line_to(to);
             }

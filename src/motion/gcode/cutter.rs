@@ -293,8 +293,8 @@ impl Cutter {
                 line,
                 format!(
                     "cutter compensation: the entry move is not greater than the tool radius \
-                     ({d:.4} mm in XY, radius {r} mm; LinuxCNC refuses it too): start G41/G42 \
-                     farther from the contour"
+                     ({d:.4} mm in XY, radius {r} mm; LinuxCNC refuses it too): the first move \
+                     after G41/G42 must move in X/Y by more than the radius"
                 ),
             ));
         }
