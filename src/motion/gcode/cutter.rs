@@ -92,6 +92,14 @@ pub(super) fn xy(p: &Pose) -> [f64; 2] {
     [p.xyz[0], p.xyz[1]]
 }
 
+/// `to` with its XY replaced by `p`.
+pub(super) fn with_xy(to: Pose, p: [f64; 2]) -> Pose {
+    let mut out = to;
+    out.xyz[0] = p[0];
+    out.xyz[1] = p[1];
+    out
+}
+
 /// `p` + `r` along angle `a`.
 pub(super) fn polar(p: [f64; 2], r: f64, a: f64) -> [f64; 2] {
     [p[0] + r * a.cos(), p[1] + r * a.sin()]
@@ -168,19 +176,14 @@ impl Cutter {
             let start = self.out;
             let (motion, end) = match p.held {
                 Held::Straight { .. } => (Motion::Linear, p.end),
-                Held::Arc { centre, turn, .. } => {
-                    let sweep_rad = sweep(xy(&start), centre, turn, xy(&p.end));
-                    let center = [centre[0], centre[1], start.xyz[2]];
-                    let plane = Plane::Xy;
-                    (
-                        Motion::Arc {
-                            plane,
-                            center,
-                            sweep_rad,
-                        },
-                        p.end,
-                    )
-                }
+                Held::Arc { centre, turn, .. } => (
+                    Motion::Arc {
+                        plane: Plane::Xy,
+                        center: [centre[0], centre[1], start.xyz[2]],
+                        sweep_rad: sweep(xy(&start), centre, turn, xy(&p.end)),
+                    },
+                    p.end,
+                ),
                 Held::Dwell { seconds } => (Motion::Dwell { seconds }, start),
             };
             self.out = end;
@@ -301,9 +304,7 @@ impl Cutter {
         let a = (p[1] - c[1]).atan2(p[0] - c[0]) + self.side.sign() * FRAC_PI_2;
         let end = polar(p, r, a);
         self.endpoint = Some(c);
-        let mut end_pose = to;
-        end_pose.xyz[0] = end[0];
-        end_pose.xyz[1] = end[1];
+        let end_pose = with_xy(to, end);
         let dir = [a.cos(), a.sin()];
         self.hold(line, Held::Straight { dir }, end_pose, feed);
         self.first = false;
@@ -356,9 +357,7 @@ impl Cutter {
         }
         let new_centre = polar(end, half / angle_a.cos(), ab);
         let sweep_rad = sweep(c, new_centre, turn, end);
-        let mut end_pose = to;
-        end_pose.xyz[0] = end[0];
-        end_pose.xyz[1] = end[1];
+        let end_pose = with_xy(to, end);
         let held = Held::Arc {
             centre: new_centre,
             turn,

@@ -12,7 +12,7 @@
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
-use super::cutter::{Cutter, Held, Side, dist, inside, polar, sweep, too_small, xy};
+use super::cutter::{Cutter, Held, Side, dist, inside, polar, sweep, too_small, with_xy, xy};
 use crate::motion::error::Error;
 use crate::motion::program::{Block, Feed, Pose};
 
@@ -29,14 +29,6 @@ fn no_fit(line: usize, what: &str) -> Error {
              gouging (LinuxCNC refuses it too): use a smaller tool or change the contour"
         ),
     )
-}
-
-/// `to` with its XY replaced.
-fn at(to: Pose, p: [f64; 2]) -> Pose {
-    let mut out = to;
-    out.xyz[0] = p[0];
-    out.xyz[1] = p[1];
-    out
 }
 
 impl Cutter {
@@ -62,7 +54,7 @@ impl Cutter {
         let mut out = Vec::new();
         if p == op {
             // No XY motion: held with the move before, at the tool's XY.
-            let end = at(to, c);
+            let end = with_xy(to, c);
             self.hold(line, Held::Straight { dir: [0.0, 0.0] }, end, feed);
             self.tool = end;
             return Ok(out);
@@ -133,7 +125,7 @@ impl Cutter {
             self.endpoint = Some(c);
         }
         let dir = [p[0] - op[0], p[1] - op[1]];
-        let end_pose = at(to, end);
+        let end_pose = with_xy(to, end);
         self.hold(line, Held::Straight { dir }, end_pose, feed);
         self.tool = end_pose;
         self.programmed = p;
@@ -229,7 +221,7 @@ impl Cutter {
             turn,
             sweep_rad: sweep(op, centre, turn, e),
         };
-        let end_pose = at(to, new_end);
+        let end_pose = with_xy(to, new_end);
         self.hold(line, held, end_pose, feed);
         self.tool = end_pose;
         self.programmed = e;
