@@ -13,7 +13,7 @@ use axum::routing::post;
 use serde::{Deserialize, Serialize};
 
 use super::AppState;
-use super::contour::reader_options;
+use super::contour::{ToolTables, reader_options};
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, decode_json, is_csv_body, read_body};
 use super::id::{Id, PathIds};
@@ -35,6 +35,10 @@ pub fn routes() -> Router<AppState> {
             post(compensated_points),
         )
 }
+
+/// The warning of a request that sent `tool_diameters`.
+const DIAMETERS_UNUSED: &str = "tool_diameters: not used here: the program is rewritten on its \
+     programmed path, which the controller offsets by the tool radius itself under G41/G42";
 
 /// Header giving the number of warnings of a `text/plain` answer.
 pub const WARNINGS_HEADER: &str = "x-truecut-warnings";
@@ -140,6 +144,10 @@ pub struct ProgramRequest {
     /// Tool lengths by H number ("1", "2", ...), mm, applied by G43 H.
     #[serde(default)]
     pub tool_lengths: BTreeMap<String, f64>,
+    /// Tool diameters by tool number, mm: checked as elsewhere, but the rewrite keeps the
+    /// programmed path that the controller offsets itself under G41/G42 (a warning says so).
+    #[serde(default)]
+    pub tool_diameters: BTreeMap<String, f64>,
     /// Machine home for G28/G30/G53: [x, y, z] mm in machine coordinates.
     #[serde(default)]
     pub home: Option<[f64; 3]>,
@@ -150,7 +158,10 @@ impl ProgramRequest {
         reader_options(
             self.strict,
             &self.work_offsets,
-            &self.tool_lengths,
+            &ToolTables {
+                lengths: &self.tool_lengths,
+                diameters: &self.tool_diameters,
+            },
             self.home,
         )
     }
@@ -288,7 +299,9 @@ async fn compensated_program(
     // The definition's home and G30 position; its errors matter only for a contour.
     let def = require_machine_def(&state, &machine).await;
     let (home, g30) = def.as_ref().map_or((None, None), |d| (d.home, d.g30));
-    let options = req.read_options()?.with_reference_points(home, g30);
+    let mut options = req.read_options()?.with_reference_points(home, g30);
+    // The rewrite works on the programmed path: the controller applies G41/G42 itself.
+    let diameters_unused = !std::mem::take(&mut options.tool_diameters_mm).is_empty();
     let volumetric = req.volumetric.unwrap_or(map.is_some());
     let contour = req.contour.unwrap_or(false);
     if !volumetric && !contour {
@@ -320,12 +333,16 @@ async fn compensated_program(
     let period_s = req.period_s.unwrap_or(DEFAULT_PERIOD_S);
     let outcome = Door::new(&state, &headers, volumetric)
         .run(move || -> Result<_, cam::Error> {
+            let note = |mut out: cam::Compensated| {
+                if diameters_unused {
+                    out.warnings.push(DIAMETERS_UNUSED.to_string());
+                }
+                out
+            };
             let (out, p) = match (&map, sim) {
                 (Some(map), None) => {
-                    return Ok((
-                        cam::compensate_program(&req.gcode, &options, map, tolerance_mm)?,
-                        None,
-                    ));
+                    let out = cam::compensate_program(&req.gcode, &options, map, tolerance_mm)?;
+                    return Ok((note(out), None));
                 }
                 (Some(map), Some(machine)) => cam::volumetric_and_contour(
                     &req.gcode,
@@ -352,7 +369,7 @@ async fn compensated_program(
                 compensated_max_mm: p.compensated.max_mm,
                 iterations: p.iterations,
             };
-            Ok((out, Some(figures)))
+            Ok((note(out), Some(figures)))
         })
         .await?;
     let (out, figures) = match outcome {

@@ -48,6 +48,10 @@ pub struct ContourRequest {
     /// Tool lengths by H number ("1", "2", ...), mm, applied by G43 H.
     #[serde(default)]
     pub tool_lengths: BTreeMap<String, f64>,
+    /// Tool diameters by tool number ("1", ...), mm: G41/G42 D (or the tool of T.. M6) then
+    /// give the tool-centre path, as LinuxCNC offsets it.
+    #[serde(default)]
+    pub tool_diameters: BTreeMap<String, f64>,
     /// Machine home for G28/G30/G53: [x, y, z] mm in machine coordinates.
     #[serde(default)]
     pub home: Option<[f64; 3]>,
@@ -59,10 +63,22 @@ impl ContourRequest {
         reader_options(
             self.strict,
             &self.work_offsets,
-            &self.tool_lengths,
+            &ToolTables {
+                lengths: &self.tool_lengths,
+                diameters: &self.tool_diameters,
+            },
             self.home,
         )
     }
+}
+
+/// The tool tables of a program-reading request: lengths by H number and diameters by tool
+/// number, mm, keyed as JSON keys ("1", "2", ...).
+pub struct ToolTables<'a> {
+    /// `tool_lengths`.
+    pub lengths: &'a BTreeMap<String, f64>,
+    /// `tool_diameters`.
+    pub diameters: &'a BTreeMap<String, f64>,
 }
 
 /// The reader's options from the body fields every program-reading route shares
@@ -72,7 +88,7 @@ impl ContourRequest {
 pub fn reader_options(
     strict: bool,
     work_offsets: &BTreeMap<String, [f64; 3]>,
-    tool_lengths: &BTreeMap<String, f64>,
+    tools: &ToolTables<'_>,
     home: Option<[f64; 3]>,
 ) -> Result<ReadOptions, ApiError> {
     let finite = |field: String, v: &[f64]| {
@@ -104,7 +120,7 @@ pub fn reader_options(
         finite(format!("work_offsets.{key}"), off)?;
         opts.work_offsets_mm[idx] = Some(*off);
     }
-    for (key, len) in tool_lengths {
+    for (key, len) in tools.lengths {
         let number: u32 = key.parse().map_err(|_| {
             ApiError::bad_request(format!(
                 "tool_lengths.{key}: keys are H numbers such as \"1\""
@@ -112,6 +128,15 @@ pub fn reader_options(
         })?;
         finite(format!("tool_lengths.{key}"), &[*len])?;
         opts.tool_lengths_mm.insert(number, *len);
+    }
+    for (key, d) in tools.diameters {
+        let number: u32 = key.parse().map_err(|_| {
+            ApiError::bad_request(format!(
+                "tool_diameters.{key}: keys are tool (D) numbers such as \"1\""
+            ))
+        })?;
+        finite(format!("tool_diameters.{key}"), &[*d])?;
+        opts.tool_diameters_mm.insert(number, *d);
     }
     Ok(opts)
 }

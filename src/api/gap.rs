@@ -14,7 +14,7 @@ use serde_json::Value;
 
 use super::AppState;
 use super::auth::Role;
-use super::contour::reader_options;
+use super::contour::{ToolTables, reader_options};
 use super::error::{ApiError, ApiResult};
 use super::extract::{ApiJson, decode_json, is_json, read_body};
 use super::lookup::{require_machine, require_measurement, require_surface};
@@ -183,7 +183,11 @@ async fn motion_from_program(
         ApiError::bad_request("period_s is missing: give the sample period in seconds, e.g. 0.001")
     })?;
     check_period(period_s)?;
-    let options = reader_options(req.strict, &req.work_offsets, &req.tool_lengths, req.home)?
+    let tools = ToolTables {
+        lengths: &req.tool_lengths,
+        diameters: &req.tool_diameters,
+    };
+    let options = reader_options(req.strict, &req.work_offsets, &tools, req.home)?
         .with_reference_points(home, g30);
     let n = req.measured.as_ref().map_or(0, Vec::len);
     if n > MAX_SYNC_SAMPLES {

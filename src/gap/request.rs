@@ -72,6 +72,9 @@ pub struct GapRequest {
     /// Motion with `gcode`: tool lengths by H number, mm.
     #[serde(default)]
     pub tool_lengths: BTreeMap<String, f64>,
+    /// Motion with `gcode`: tool diameters by tool number, mm (G41/G42: the tool-centre path).
+    #[serde(default)]
+    pub tool_diameters: BTreeMap<String, f64>,
     /// Motion with `gcode`: machine home for G28/G30/G53, [x, y, z] mm.
     #[serde(default)]
     pub home: Option<[f64; 3]>,
@@ -252,10 +255,12 @@ pub fn motion_inputs_timed(
         && (req.strict
             || !req.work_offsets.is_empty()
             || !req.tool_lengths.is_empty()
+            || !req.tool_diameters.is_empty()
             || req.home.is_some())
     {
         return Err(Error::Request(
-            "strict, work_offsets, tool_lengths and home read a program: send them with gcode"
+            "strict, work_offsets, tool_lengths, tool_diameters and home read a program: send \
+             them with gcode"
                 .into(),
         ));
     }

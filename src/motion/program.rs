@@ -143,6 +143,11 @@ pub(crate) struct ArcWords {
     pub r: Option<f64>,
 }
 
+/// How much an R word may fall short of half the chord and still make a half circle, mm:
+/// LinuxCNC's RADIUS_TOLERANCE (0.00005 inch), room for a post that rounds R of a half
+/// circle down in its last digit.
+const R_SHORT_OF_CHORD_MM: f64 = 0.00127;
+
 /// Centre and signed sweep of a G2/G3 block from IJK (centre offsets from the start,
 /// always incremental) or R (negative R: the arc longer than 180°).
 pub(crate) fn arc_geometry(
@@ -183,8 +188,7 @@ pub(crate) fn arc_geometry(
                 ));
             }
             let half = chord / 2.0;
-            let tol = 1e-6_f64.max(1e-6 * r_mm.abs());
-            if r_mm.abs() < half - tol {
+            if r_mm.abs() < half - R_SHORT_OF_CHORD_MM {
                 return Err(Error::gcode(
                     line,
                     format!("arc radius R{r} is smaller than half the chord ({half:.4} mm)"),

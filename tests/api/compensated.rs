@@ -141,10 +141,7 @@ async fn assert_valid(
             .get(&p.map(f64::to_bits))
             .unwrap_or_else(|| panic!("{tag}: e({p:?}) was not fetched"))
     };
-    let rs = crate::rs274::find();
-    if rs.is_none() {
-        println!("SKIPPED (the rs274 half of the check): rs274 not installed");
-    }
+    let rs = crate::rs274::required();
     let dir = tempfile::tempdir().unwrap();
     let asked = crate::valid::Asked {
         error: volumetric.then_some(&lookup as &dyn Fn([f64; 3]) -> [f64; 3]),
@@ -460,6 +457,29 @@ async fn refusals(app: TestApp) {
         .post_json(PROGRAM, &json!({"gcode": "G0 X1\nG12.1"}))
         .await;
     assert_problem(r, 422, &["line 2", "G12.1"]).await;
+    // Tool diameters are checked, then left to the controller's G41/G42 (a warning says so).
+    let g41 = "G0 X-10 Y0 Z300\nG41 D1 G1 X0 F600\nX10\nG40 X20";
+    let r = app
+        .post_json(
+            PROGRAM,
+            &json!({"gcode": g41, "tool_diameters": {"1": 6.0}}),
+        )
+        .await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    assert!(
+        b["warnings"]
+            .to_string()
+            .contains("tool_diameters: not used here"),
+        "{b}"
+    );
+    let r = app
+        .post_json(
+            PROGRAM,
+            &json!({"gcode": g41, "tool_diameters": {"one": 6.0}}),
+        )
+        .await;
+    assert_problem(r, 400, &["tool_diameters.one"]).await;
     let r = app
         .post_json(POINTS, &json!({"points": [[1.0, 2.0]]}))
         .await;

@@ -329,6 +329,59 @@ async fn offsets_tool_lengths_and_inch_programs(app: TestApp) {
 }
 on_both_backends!(offsets_tool_lengths_and_inch_programs);
 
+/// The G41 pocket of `tests/data/programs` (a 30 x 20 pocket, D1 a 6 mm cutter).
+const POCKET: &str = include_str!("../data/programs/pocket_finish.nc");
+
+async fn cutter_compensation_with_tool_diameters(app: TestApp) {
+    put_machine(&app, "m", &xyz_kv(30.0, 0.0)).await;
+    // Largest commanded X on the wall lines (9..=15): the tool centre, 3 mm inside X30.
+    let x_max = |b: &Value| {
+        let cmd: Vec<Vec<f64>> = serde_json::from_value(b["commanded"].clone()).unwrap();
+        let line: Vec<u32> = serde_json::from_value(b["line"].clone()).unwrap();
+        (0..cmd.len())
+            .filter(|&i| (9..=15).contains(&line[i]))
+            .map(|i| cmd[i][0])
+            .fold(f64::MIN, f64::max)
+    };
+    let r = contour(
+        &app,
+        "m",
+        &json!({"gcode": POCKET, "tool_diameters": {"1": 6.0}}),
+    )
+    .await;
+    assert_eq!(r.status(), 200);
+    let b: Value = r.json().await.unwrap();
+    assert!((x_max(&b) - 27.0).abs() < 1e-9, "{}", x_max(&b));
+    let warnings: Vec<String> = serde_json::from_value(b["warnings"].clone()).unwrap();
+    assert!(
+        warnings
+            .iter()
+            .any(|w| w.contains("G41 D1") && w.contains("3 mm")),
+        "{warnings:#?}"
+    );
+    // Without diameters: the programmed path, with the warning of old.
+    let r = contour(&app, "m", &json!({"gcode": POCKET})).await;
+    let b: Value = r.json().await.unwrap();
+    assert!((x_max(&b) - 30.0).abs() < 1e-9);
+    assert!(b["warnings"].to_string().contains("without tool_diameters"));
+    // A tool the entry is too short for: 422 naming the line and why.
+    let r = contour(
+        &app,
+        "m",
+        &json!({"gcode": POCKET, "tool_diameters": {"1": 40.0}}),
+    )
+    .await;
+    assert_problem(
+        r,
+        422,
+        &["line 9", "entry move is not greater than the tool radius"],
+    )
+    .await;
+    let body = json!({"gcode": POCKET, "tool_diameters": {"T1": 6.0}});
+    assert_problem(contour(&app, "m", &body).await, 400, &["tool_diameters.T1"]).await;
+}
+on_both_backends!(cutter_compensation_with_tool_diameters);
+
 async fn bad_requests_are_4xx(app: TestApp) {
     let r = contour(&app, "nope", &json!({"gcode": "G1 X1 F100"})).await;
     assert_problem(r, 404, &["nope"]).await;

@@ -688,6 +688,12 @@ async fn motion_timed_log_refusals(app: TestApp) {
         "measured": logged, "measured_t": t[1..]});
     let r = app.post_json(url, &body).await;
     assert_problem(r, 400, &["measured_t", "one stamp"]).await;
+    // the reader's options without a program
+    let (cmd, _) = program_truth(PROGRAM, 0);
+    let body = json!({"domain": "motion", "period_s": 0.001, "commanded": rows(&cmd),
+        "measured": logged, "tool_diameters": {"1": 6.0}});
+    let r = app.post_json(url, &body).await;
+    assert_problem(r, 400, &["tool_diameters", "send them with gcode"]).await;
     // the same log against command rows instead of the program: aligned as well
     let (cmd, _) = program_truth(PROGRAM, 0);
     let body = json!({"domain": "motion", "period_s": 0.001, "commanded": rows(&cmd),

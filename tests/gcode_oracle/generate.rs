@@ -1,6 +1,6 @@
 //! Seeded random programs for the oracle comparison: G0..G3 in G17/G18/G19 (IJK and R arcs,
 //! full circles, helices), G90/G91, G90.1/G91.1, G20/G21, canned cycles
-//! G73/G74/G81/G82/G83/G84/G85/G86/G88/G89 with G98/G99, modal hole lines and G80, N numbers,
+//! G73/G74/G81/G82/G83/G84/G85/G86/G89 with G98/G99 (not G88: see `main`), modal hole lines and G80, N numbers,
 //! comments and block delete.
 //!
 //! Every coordinate is an integer number of the resolution (0.001 mm, 0.0001 inch), tracked
@@ -225,7 +225,7 @@ impl Gen {
     }
 
     fn cycle(&mut self) {
-        const CODES: [u32; 10] = [73, 74, 81, 82, 83, 84, 85, 86, 88, 89];
+        const CODES: [u32; 9] = [73, 74, 81, 82, 83, 84, 85, 86, 89];
         let code = CODES[self.rng.random_range(0..CODES.len())];
         if self.plane != 0 {
             self.plane = 0;
@@ -248,7 +248,7 @@ impl Gen {
             let q = self.mm_range(0.5, 6.0).max(1);
             extra += &format!(" Q{}", self.fmt(q));
         }
-        if matches!(code, 82 | 86 | 88 | 89) {
+        if matches!(code, 82 | 86 | 89) {
             // rs274 reads P as seconds, Fanuc as ms: a small value is valid for both.
             extra += " P0.5";
         }

@@ -1,10 +1,12 @@
 //! The codes of one line: what each G code sets or asks for ([`LineCodes`]), and the words
-//! that move nothing (comments, `%`, program numbers, block delete, N, S, T, D), each named in
-//! a warning or refused by mode.
+//! that move nothing (comments, `%`, program numbers, block delete, N, S, T, D unless G41/G42
+//! use it), each named in a warning or refused by mode.
 //!
 //! Split from `super::reader` so that each file keeps to one concept: the reader walks the
 //! lines and decides what a line does, this file reads its codes.
 
+use super::cutter::Side;
+use super::cutter_reader::CompCode;
 use super::cycles::unmodelled;
 use super::lexer::{Lexed, g_name, word_name};
 use super::options::Legacy::{Accepted, Refused};
@@ -37,13 +39,14 @@ impl Reader<'_> {
             190 => self.m.plane = Plane::Yz,
             200 => self.m.inch = true,
             210 => self.m.inch = false,
-            400 => self.notes.note(line, name, "cutter compensation cancel", Accepted)?,
-            410 | 420 => self.notes.note(
-                line,
-                name,
-                "cutter radius compensation is not modelled: the programmed tool-tip path is used",
-                Refused,
-            )?,
+            400 => {
+                self.notes
+                    .note(line, name, "cutter compensation cancel", Accepted)?;
+                c.comp = Some(CompCode::Off);
+            }
+            410 | 420 => {
+                c.comp = Some(CompCode::On(if g == 410 { Side::Left } else { Side::Right }));
+            }
             280 | 300 | 530 => {
                 self.notes.modelled(line, name)?;
                 c.home = Some(g);
@@ -51,6 +54,7 @@ impl Reader<'_> {
             430 => {
                 self.notes.modelled(line, name)?;
                 c.tool_length = true;
+                c.tool_offset = true;
             }
             440 => self.notes.note(
                 line,
@@ -60,11 +64,15 @@ impl Reader<'_> {
             )?,
             434 => self.m.rtcp = true,
             490 => {
+                c.tool_offset = true;
                 self.m.rtcp = false;
                 self.m.tool_mm = 0.0;
                 self.notes.note(line, name, "tool length compensation cancelled", Accepted)?;
             }
-            540..=590 if g % 10 == 0 => self.work_offset(line, g)?,
+            540..=590 if g % 10 == 0 => {
+                c.work_offset = true;
+                self.work_offset(line, g)?
+            }
             610 | 611 | 640 | 90 | 51 | 80 => self.path_code(line, g, c)?,
             150 | 500 | 501 | 670 | 690 => self.notes.note(
                 line,
@@ -162,15 +170,11 @@ impl Reader<'_> {
         for (letter, what) in [
             (b'S', "spindle speed: not modelled"),
             (b'T', "tool select: not modelled"),
-            (
-                b'D',
-                "cutter radius offset number: the programmed tool-tip path is used",
-            ),
         ] {
             if let Some(v) = w.get(letter) {
                 n.note(line, word_name(letter as char, v), what, Accepted)?;
             }
         }
-        Ok(())
+        self.note_d_word(line, l)
     }
 }

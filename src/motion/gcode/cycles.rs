@@ -1,6 +1,7 @@
 //! Canned cycles expanded into the rapid and feed moves they make (Fanuc semantics; Smid
-//! 2008 ch. 25, fixed cycles): rapid to the hole's XY, rapid to the R plane, feed to Z (in
-//! pecks for G73/G83), dwell P, retract, then rapid to the initial Z (G98) or stay at R (G99).
+//! 2008 ch. 25, fixed cycles): rapid to the hole's XY (first up to the R plane when below
+//! it, as LinuxCNC does), rapid to the R plane, feed to Z (in pecks for G73/G83), dwell P,
+//! retract, then rapid to the initial Z (G98) or stay at R (G99).
 //!
 //! | code | in | at the bottom | out to R |
 //! |---|---|---|---|
@@ -90,6 +91,12 @@ impl Cycle {
             rtcp,
         };
         let mut p = from;
+        if p.xyz[2] < self.r_z_mm {
+            // Below the R plane: up to it before moving across (LinuxCNC's preliminary
+            // motion; moving across below R could run the tool into the part).
+            p.xyz[2] = self.r_z_mm;
+            path.go(p, Motion::Linear, Feed::Rapid);
+        }
         p.xyz[0] = xy[0];
         p.xyz[1] = xy[1];
         path.go(p, Motion::Linear, Feed::Rapid);
@@ -123,9 +130,16 @@ impl Cycle {
             87 => None,
             _ => Some(Feed::Rapid),
         };
-        if let Some(back) = back {
-            p.xyz[2] = self.r_z_mm;
-            path.go(p, Motion::Linear, back);
+        let up_to_initial = (to_initial || self.code == 87) && self.initial_z_mm > self.r_z_mm;
+        match back {
+            // A rapid out goes straight on to the initial level under G98 (one move, as
+            // LinuxCNC makes it).
+            Some(Feed::Rapid) if up_to_initial => {}
+            Some(back) => {
+                p.xyz[2] = self.r_z_mm;
+                path.go(p, Motion::Linear, back);
+            }
+            None => {}
         }
         // G87 always returns to the initial level (Fanuc: G99 is not used with it).
         if (to_initial || self.code == 87) && self.initial_z_mm > p.xyz[2] {

@@ -77,11 +77,12 @@ impl Reader<'_> {
     }
 
     fn push_rapid(&mut self, line: usize, end: Pose) {
-        if end != self.m.pose {
+        let start = self.move_start();
+        if end != start {
             self.prog.blocks.push(Block {
                 line,
                 motion: Motion::Linear,
-                start: self.m.pose,
+                start,
                 end,
                 feed: Feed::Rapid,
                 rtcp: self.m.rtcp,
@@ -92,6 +93,7 @@ impl Reader<'_> {
 
     /// G28/G30 (through the intermediate point to home) and G53 (machine coordinates).
     pub(super) fn home(&mut self, line: usize, g: u32, l: &Lexed) -> Result<(), Error> {
+        self.refuse_under_cutter(line, "G28/G30/G53")?;
         let named: Vec<usize> = (0..3).filter(|&k| l.words.get(XYZ[k]).is_some()).collect();
         if g != 530 {
             let mut mid = self.m.pose;

@@ -18,6 +18,16 @@ impl Reader<'_> {
     pub(super) fn m_codes(&mut self, line: usize, mcodes: &[u32]) -> Result<bool, Error> {
         let mut ends = false;
         for &mc in mcodes {
+            if matches!(mc, 0 | 1 | 6 | 60) {
+                let what = match mc {
+                    6 => "a tool change (M6)".to_string(),
+                    _ => format!("a program stop (M{mc})"),
+                };
+                self.refuse_under_cutter(line, &what)?;
+            }
+            if mc == 6 {
+                self.m.spindle_tool = self.m.selected_tool;
+            }
             let what = match mc {
                 0 | 1 => "program stop: not modelled (no wait)",
                 2 | 30 => "program end: reading stops here",
@@ -98,14 +108,7 @@ impl Reader<'_> {
             return Err(Error::gcode(line, "G4 dwell time must be >= 0"));
         }
         if seconds > 0.0 {
-            self.prog.blocks.push(Block {
-                line,
-                motion: Motion::Dwell { seconds },
-                start: self.m.pose,
-                end: self.m.pose,
-                feed: Feed::Rapid,
-                rtcp: self.m.rtcp,
-            });
+            self.push_dwell(line, seconds);
         }
         Ok(())
     }
@@ -216,6 +219,7 @@ impl Reader<'_> {
         let Some(cycle) = self.m.cycle else {
             return Ok(());
         };
+        self.refuse_under_cutter(line, &format!("a canned cycle (G{})", cycle.code))?;
         let feed = self.feed(line, false, l)?;
         let mut xy = [self.m.pose.xyz[0], self.m.pose.xyz[1]];
         for (k, v) in xy.iter_mut().enumerate() {
@@ -233,7 +237,8 @@ impl Reader<'_> {
                 format!("ran at an unknown machine position (since line {since}): not modelled"),
             );
         }
-        let blocks = cycle.hole(line, self.m.pose, xy, feed, self.m.to_initial, self.m.rtcp);
+        let from = self.move_start();
+        let blocks = cycle.hole(line, from, xy, feed, self.m.to_initial, self.m.rtcp);
         if let Some(last) = blocks.last() {
             self.m.pose = last.end;
         }
@@ -346,14 +351,33 @@ impl Reader<'_> {
                 return Ok(());
             }
         }
-        self.prog.blocks.push(Block {
+        let mut block = Block {
             line,
             motion,
             start,
             end,
             feed,
             rtcp: self.m.rtcp,
-        });
+        };
+        if self.compensate(&block)? {
+            return Ok(());
+        }
+        if let Some(tool) = self.after_exit.take() {
+            if matches!(motion, Motion::Arc { .. }) {
+                return Err(Error::gcode(
+                    line,
+                    "the move after G40 must be a straight line, not an arc (it leaves the \
+                     compensated path; LinuxCNC refuses an arc here too)",
+                ));
+            }
+            // It starts from the tool centre; under G93 it keeps the rate of its programmed
+            // length, as LinuxCNC runs it.
+            if let Feed::InverseTime(f) = feed {
+                block.feed = Feed::PerMinute(f * block.xyz_length());
+            }
+            block.start = tool;
+        }
+        self.prog.blocks.push(block);
         Ok(())
     }
 }

@@ -1,5 +1,5 @@
 //! What the caller tells the reader ([`ReadOptions`]: strictness, work offsets, tool lengths,
-//! home) and what the reader tells back ([`Warning`]): every word it passes through or cannot
+//! tool diameters, home) and what the reader tells back ([`Warning`]): every word it passes through or cannot
 //! model faithfully, each named once with the first line it appeared on.
 //!
 //! Why warnings and not silence: a post-processor's program is full of words that do not move
@@ -25,6 +25,10 @@ pub struct ReadOptions {
     /// Tool lengths by H number, mm: under `G43 Hn` the machine Z is the programmed Z + length.
     /// A missing number keeps the programmed tool-tip path, with a warning.
     pub tool_lengths_mm: BTreeMap<u32, f64>,
+    /// Tool diameters by number, mm: under `G41/G42 Dn` (or, without D, the tool of the last
+    /// `Tn M6`) the path is the tool centre, offset by half the diameter as LinuxCNC offsets
+    /// it (`super::cutter`). Empty: G41/G42 keep the programmed path, with a warning.
+    pub tool_diameters_mm: BTreeMap<u32, f64>,
     /// Machine home (G28 reference point), mm in machine coordinates. `None`: the axes that
     /// G28/G53 name are unknown until programmed absolutely again.
     pub home_mm: Option<[f64; 3]>,

@@ -8,11 +8,13 @@
 //! (absolute / incremental arc centres), G93/G94, G43.4/G49 and TRAORI/TRAFOOF (RTCP), modal
 //! motion lines without a G word, canned cycles G73/G74/G81..G89 with G98/G99 (G80 cancels;
 //! `super::cycles`), G54..G59 with caller-given offsets, G43 H with caller-given tool
-//! lengths, G28/G53 with a caller-given home, G30 with a caller-given G30 position. Passed
+//! lengths, G28/G53 with a caller-given home, G30 with a caller-given G30 position, G41/G42
+//! with caller-given tool diameters (the tool-centre path as LinuxCNC offsets it in XY;
+//! `super::cutter_reader`) and G40. Passed
 //! through with a warning (each word once, [`Warning`]), or refused under `strict`: comments,
 //! `%`, O numbers (words after one on its line are read), N, S, T, D, H, M codes (vendor ones
-//! included), F-only lines, G40/G41/G42, G49, G61/G64 (read as path-control modes by
-//! [`parse_modes`]: `super::modes`), G80, what a cycle does that the path
+//! included), F-only lines, G41/G42 without tool diameters, G49, G61/G64 (read as path-control
+//! modes by [`parse_modes`]: `super::modes`), G80, what a cycle does that the path
 //! cannot show (pecks' clearance, tapping's spindle reversal, G86-G88's spindle stop and
 //! manual retract), block delete `/` at the start of a block or in mid-block (read with the
 //! switch off), offsets and tool lengths the caller did not give, G28/G30 without their
@@ -23,6 +25,8 @@
 //! [`parse`] is the reader as it was before warnings: what it accepted then passes silently,
 //! everything else is [`Error::UnsupportedCode`]. Tests are in `super::tests`.
 
+use super::cutter::Cutter;
+use super::cutter_reader::CompCode;
 use super::cycles::Cycle;
 use super::lexer::{Lexed, lex, word_name};
 use super::modes::{PathModal, PathWords};
@@ -67,6 +71,10 @@ pub(super) struct Modal {
     pub(super) still_axes: [Option<f64>; 4],
     /// Path-control modes in force (G61/G64, look-ahead on/off).
     pub(super) path: PathModal,
+    /// Tool selected by the last T word.
+    pub(super) selected_tool: Option<u32>,
+    /// Tool in the spindle (the selected one at the last M6).
+    pub(super) spindle_tool: Option<u32>,
 }
 
 impl Modal {
@@ -164,13 +172,19 @@ fn read(
             unknown: [None; 3],
             still_axes: [None; 4],
             path: PathModal::default(),
+            selected_tool: None,
+            spindle_tool: None,
         },
         prog: Program::default(),
+        cutter: None,
+        after_exit: None,
         path,
         stop_once: false,
     };
+    let mut last = 0;
     for (idx, raw) in text.lines().enumerate() {
         let line = idx + 1;
+        last = line;
         let lexed = lex(raw, line)?;
         let before = r.prog.blocks.len();
         r.stop_once = false;
@@ -197,6 +211,8 @@ fn read(
             break;
         }
     }
+    // The program's end cancels cutter compensation: its held moves end where they are.
+    r.cutter_off(last)?;
     Ok((r.prog, r.notes.list))
 }
 
@@ -209,6 +225,10 @@ pub(super) struct Reader<'a> {
     pub(super) path: Option<&'a mut PathControl>,
     /// G9 on the line being read.
     pub(super) stop_once: bool,
+    /// Cutter radius compensation in force (G41/G42 with a tool diameter).
+    pub(super) cutter: Option<Cutter>,
+    /// The tool centre right after G40: where the next move starts.
+    pub(super) after_exit: Option<Pose>,
 }
 
 /// What the G words of one line asked for, beyond modal state.
@@ -220,6 +240,12 @@ pub(super) struct LineCodes {
     pub(super) home: Option<u32>,
     pub(super) cycle: Option<u32>,
     pub(super) path: PathWords,
+    /// G40, G41 or G42.
+    pub(super) comp: Option<CompCode>,
+    /// G43 or G49 (the tool length changes).
+    pub(super) tool_offset: bool,
+    /// G54..G59.
+    pub(super) work_offset: bool,
 }
 
 impl Reader<'_> {
@@ -237,7 +263,11 @@ impl Reader<'_> {
         for kw in &l.keywords {
             self.m.rtcp = *kw == "TRAORI";
         }
+        if let Some(t) = w.get(b'T').filter(|t| *t >= 0.0 && t.fract() == 0.0) {
+            self.m.selected_tool = Some(t as u32);
+        }
         let ends = self.m_codes(line, &l.mcodes)?;
+        self.cutter_codes(line, &c, l)?;
         self.still_axes(line, l)?;
         if c.tool_length {
             self.tool_length(line, w.get(b'H'))?;

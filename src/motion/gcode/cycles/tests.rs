@@ -37,8 +37,9 @@ fn tapping_and_boring_cycles_retract_as_fanuc_does() {
         // Tapping: fed in, fed out to R (spindle reversed), then rapid to the initial Z.
         ("G84", "G98", vec![f(-5.0), f(2.0), r(10.0)]),
         ("G74", "G99", vec![f(-5.0), f(2.0)]),
-        // G86: spindle stop, rapid out. G88: dwell, manual retract (rapid on cycle start).
-        ("G86", "G98", vec![f(-5.0), r(2.0), r(10.0)]),
+        // G86: spindle stop, rapid out (under G98 straight on to the initial Z, as LinuxCNC
+        // makes it: one move). G88: dwell, manual retract (rapid on cycle start).
+        ("G86", "G98", vec![f(-5.0), r(10.0)]),
         ("G88", "G99", vec![f(-5.0), r(2.0)]),
         // G89: dwell, fed out to R.
         ("G89", "G98", vec![f(-5.0), f(2.0), r(10.0)]),
@@ -144,4 +145,17 @@ fn pecks_feed_to_the_depths_linuxcnc_prints() {
     );
     let e = parse_with("G83 X5 Z-10 R2 Q-1 F100", &ReadOptions::default()).unwrap_err();
     assert!(matches!(e, Error::Gcode { line: 1, .. }), "{e:?}");
+}
+
+#[test]
+fn a_hole_from_below_the_r_plane_rises_to_it_before_moving_across() {
+    // LinuxCNC's preliminary motion: from Z1, below R2, up to R first, then across.
+    let (p, _) = lenient("G0 X0 Y0 Z1\nG99 G81 X5 Y5 Z-3 R2 F100\nG80");
+    let want = vec![
+        ([0.0, 0.0, 2.0], true),
+        ([5.0, 5.0, 2.0], true),
+        ([5.0, 5.0, -3.0], false),
+        ([5.0, 5.0, 2.0], true),
+    ];
+    assert_eq!(path_of(&p, 2), want);
 }
