@@ -18,8 +18,7 @@ use std::time::Instant;
 
 use serde_json::json;
 use truecut::cam::{
-    DEFAULT_BAND_MM, DEFAULT_MAX_DURATION_RATIO, MAX_ITERATIONS, PredistortOptions,
-    contour_program,
+    DEFAULT_BAND_MM, DEFAULT_MAX_DURATION_RATIO, MAX_ITERATIONS, PredistortOptions, contour_program,
 };
 use truecut::motion::{Machine, ReadOptions, gcode, predict_program};
 
@@ -123,7 +122,11 @@ fn run(name: &str, text: &str, m: &Machine, period_s: f64, tally: &mut Tally) {
     println!(
         "{name:28} {r:.3}x {mx:.3}x | {wr:.3}x {wm:.3}x | {d:.3}x | {} | {blocks_in:>3} -> {:>3} | \
          {wall:6.2} s {:5.0}x",
-        if ok_n && ok_w && ok_d { "met    " } else { "NOT MET" },
+        if ok_n && ok_w && ok_d {
+            "met    "
+        } else {
+            "NOT MET"
+        },
         out.blocks,
         wall / base
     );
@@ -176,7 +179,13 @@ fn main() {
         for feed in [1000.0, 2000.0, 3000.0] {
             for kv in [30.0, 45.0, 60.0] {
                 let m = machine(kv, 0.6, 400.0, 0.01, 0.0005, None);
-                run(&format!("{name} F{feed} kv{kv}"), &make(feed), &m, 1e-3, &mut grid);
+                run(
+                    &format!("{name} F{feed} kv{kv}"),
+                    &make(feed),
+                    &m,
+                    1e-3,
+                    &mut grid,
+                );
             }
         }
     }

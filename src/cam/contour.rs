@@ -224,7 +224,10 @@ fn contour_pass(
     let what: Vec<&str> = changes.iter().map(|s| s.as_str()).collect();
     say(
         result.lines.keys().map(|&l| src(l)).collect(),
-        &format!("rewritten by the contour pre-distortion: {}", what.join("; ")),
+        &format!(
+            "rewritten by the contour pre-distortion: {}",
+            what.join("; ")
+        ),
     );
     warnings.extend(stops.into_iter().cloned());
     let (lines, out_lines) = em.finish();
@@ -305,4 +308,3 @@ fn plan_of(pieces: &[Piece], unit: f64) -> LinePlan {
         dwells_s: Vec::new(),
     }
 }
-

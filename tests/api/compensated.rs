@@ -474,12 +474,20 @@ async fn refusals(app: TestApp) {
         .await;
     assert_eq!(r.status(), 200);
     let body: Value = r.json().await.unwrap();
-    let dwells: Vec<&str> = body["gcode"].as_str().unwrap().lines().filter(|l| l.contains("G4")).collect();
+    let dwells: Vec<&str> = body["gcode"]
+        .as_str()
+        .unwrap()
+        .lines()
+        .filter(|l| l.contains("G4"))
+        .collect();
     assert_eq!(dwells, ["G4 P1"]);
     // The band is checked.
     for bad in [0.0, 2.0] {
         let r = app
-            .post_json(PROGRAM, &json!({"gcode": "G1 X5 F600", "contour": true, "band_mm": bad}))
+            .post_json(
+                PROGRAM,
+                &json!({"gcode": "G1 X5 F600", "contour": true, "band_mm": bad}),
+            )
             .await;
         assert_problem(r, 400, &["band_mm"]).await;
     }
@@ -579,10 +587,18 @@ fn assert_contour_invariants(original: &str, body: &Value) {
             .filter_map(|w| w.strip_prefix(c).and_then(|v| v.parse().ok()))
             .collect()
     };
-    let max_f = orig.iter().flat_map(|l| words(l, 'F')).fold(0.0f64, f64::max);
+    let max_f = orig
+        .iter()
+        .flat_map(|l| words(l, 'F'))
+        .fold(0.0f64, f64::max);
     let out: Vec<&str> = text.lines().collect();
     assert_eq!(out.len(), src.len());
-    assert!(out.len() <= 3 * orig.len() + 50, "{} blocks from {}", out.len(), orig.len());
+    assert!(
+        out.len() <= 3 * orig.len() + 50,
+        "{} blocks from {}",
+        out.len(),
+        orig.len()
+    );
     let dwells = |ls: &[&str]| ls.iter().filter(|l| words(l, 'G').contains(&4.0)).count();
     assert_eq!(dwells(&out), dwells(&orig), "dwells added:\n{text}");
     for (l, s) in out.iter().zip(&src) {
@@ -591,11 +607,17 @@ fn assert_contour_invariants(original: &str, body: &Value) {
         }
         let o = orig[s - 1];
         if !code(o).contains('Z') {
-            assert!(!code(l).contains('Z'), "a Z word on a 2-D cut: {l} (from {o})");
+            assert!(
+                !code(l).contains('Z'),
+                "a Z word on a 2-D cut: {l} (from {o})"
+            );
         }
         let g = words(o, 'G');
         if g.contains(&2.0) || g.contains(&3.0) {
-            assert!(!words(l, 'G').contains(&1.0), "an arc became a line: {l} (from {o})");
+            assert!(
+                !words(l, 'G').contains(&1.0),
+                "an arc became a line: {l} (from {o})"
+            );
         }
     }
 }
@@ -674,7 +696,13 @@ async fn contour_precompensation(app: TestApp) {
                     N60 G1 Y30.\nN70 M5\nM30\n%\n";
     let body = contour_answer(&app, original).await;
     let text = body["gcode"].as_str().unwrap();
-    for keep in ["%", "O1001 (CIRCLE R25 F2000)", "N20 M3 S8000 (SPINDLE)", "N70 M5", "M30"] {
+    for keep in [
+        "%",
+        "O1001 (CIRCLE R25 F2000)",
+        "N20 M3 S8000 (SPINDLE)",
+        "N70 M5",
+        "M30",
+    ] {
         assert!(text.lines().any(|l| l == keep), "{keep} lost:\n{text}");
     }
     assert!(text.contains("G3"), "the circle stays an arc:\n{text}");
@@ -696,8 +724,12 @@ async fn contour_precompensation(app: TestApp) {
         c["iterations"],
         models
             .iter()
-            .map(|m| format!("{} {:.3}/{:.3}", m["model"].as_str().unwrap(),
-                m["rms_ratio"].as_f64().unwrap(), m["max_ratio"].as_f64().unwrap()))
+            .map(|m| format!(
+                "{} {:.3}/{:.3}",
+                m["model"].as_str().unwrap(),
+                m["rms_ratio"].as_f64().unwrap(),
+                m["max_ratio"].as_f64().unwrap()
+            ))
             .collect::<Vec<_>>()
             .join(", ")
     );
@@ -724,7 +756,12 @@ async fn contour_precompensation_at_corners(app: TestApp) {
     assert_contour_valid(&app, "circle_corners", original, &body).await;
     let fig = resimulate(&def, original, body["gcode"].as_str().unwrap());
     let models = body["contour"]["models"].as_array().unwrap();
-    let worst = |k: &str| models.iter().map(|m| m[k].as_f64().unwrap()).fold(0.0, f64::max);
+    let worst = |k: &str| {
+        models
+            .iter()
+            .map(|m| m[k].as_f64().unwrap())
+            .fold(0.0, f64::max)
+    };
     println!(
         "contour pre-compensation, circle + 140° + 90° F2000 kv40: {}; worst of the set: RMS \
          {:.3}x, max {:.3}x",
@@ -732,7 +769,11 @@ async fn contour_precompensation_at_corners(app: TestApp) {
         worst("rms_ratio"),
         worst("max_ratio")
     );
-    assert!(fig.rms1 <= 0.6 * fig.rms0 && fig.max1 <= 0.9 * fig.max0, "{}", fig.summary());
+    assert!(
+        fig.rms1 <= 0.6 * fig.rms0 && fig.max1 <= 0.9 * fig.max0,
+        "{}",
+        fig.summary()
+    );
     assert!(worst("rms_ratio") < 1.0, "{models:?}");
 
     let pocket = "%\nO1003 (POCKET G41)\nN10 G21 G90 G17 G94\nN20 G41 D1 G1 X10. F2000\n\
@@ -742,12 +783,19 @@ async fn contour_precompensation_at_corners(app: TestApp) {
     assert_contour_valid(&app, "pocket_g41", pocket, &body).await;
     let text = body["gcode"].as_str().unwrap();
     for whole in ["N20 G41 D1 G1 X10. F2000", "N70 G40 G1 X5. Y5."] {
-        assert!(text.lines().any(|l| l == whole), "{whole} not kept whole:\n{text}");
+        assert!(
+            text.lines().any(|l| l == whole),
+            "{whole} not kept whole:\n{text}"
+        );
     }
     let src: Vec<usize> = serde_json::from_value(body["source_lines"].clone()).unwrap();
     // Lines 5 (N20, G41) and 6 (N30, the move after) come back as one line each.
     for l in [5, 6, 10] {
-        assert_eq!(src.iter().filter(|&&s| s == l).count(), 1, "line {l}:\n{text}");
+        assert_eq!(
+            src.iter().filter(|&&s| s == l).count(),
+            1,
+            "line {l}:\n{text}"
+        );
     }
 }
 on_both_backends!(contour_precompensation_at_corners);

@@ -227,8 +227,9 @@ fn one_case(
         "volumetric" => {
             compensate_program(text, options, map, DEFAULT_TOLERANCE_MM).map(|c| (c, None))
         }
-        "contour" => contour_program(text, options, machine, &contour_options())
-            .map(|(c, p)| (c, Some(p))),
+        "contour" => {
+            contour_program(text, options, machine, &contour_options()).map(|(c, p)| (c, Some(p)))
+        }
         _ => volumetric_and_contour(
             text,
             options,

@@ -44,8 +44,8 @@ pub use options::{
     PredistortOptions,
 };
 pub use shape::{
-    CORNER_MIN_RAD, MAX_LENGTH_SHARE, MIN_FEED_FRACTION, Piece, REACH_FACTOR,
-    START_FEED_FRACTION, TRANSITION_TIME_CONSTANTS,
+    CORNER_MIN_RAD, MAX_LENGTH_SHARE, MIN_FEED_FRACTION, Piece, REACH_FACTOR, START_FEED_FRACTION,
+    TRANSITION_TIME_CONSTANTS,
 };
 pub use solve::{CONVERGED, TRIALS};
 
@@ -224,16 +224,10 @@ pub fn predistort_sided(
             && matches!(b.feed, Feed::PerMinute(_))
             && !keep(b.line)
             && per_line[&b.line] == 1
-            && b.start.xyz != b.end.xyz
+            // A full circle starts where it ends; a line must go somewhere.
+            && (matches!(b.motion, Motion::Arc { .. }) || b.start.xyz != b.end.xyz)
     };
-    let shape = shape::Shape::new(
-        program,
-        &obj.path,
-        machine,
-        &movable,
-        &near,
-        opts.band_mm,
-    );
+    let shape = shape::Shape::new(program, &obj.path, machine, &movable, &near, opts.band_mm);
     let layout = solve::Layout {
         bins: shape.window.iter().map(|w| obj.bins(*w)).collect(),
         rows: shape

@@ -9,9 +9,10 @@
 //! residuals:
 //! - the RMS term √(Σ w d² / W₀) / (0.3 · RMS₀): its squares sum to (RMS / (0.3 RMS₀))²,
 //!   1 at the nominal gate ([`RMS_TARGET`]);
-//! - the max term √(Σ w d⁸ / W₀) / (0.5 · max₀)⁴: squares summing to the 8-norm of the
-//!   distance over 0.5 max₀ to the 8th power — a smooth stand-in for the max that is 1
-//!   near the nominal gate ([`MAX_TARGET`]);
+//! - the max term √(Σ w d⁸ / W₀) / (0.5⁴ · ‖d₀‖₈⁴): squares summing to the ratio of the
+//!   8-norm of the distance to the original's, over 0.5, to the 8th power — a smooth
+//!   stand-in for the max ratio (a corner's peak dominates an 8-norm) that is 1 at the
+//!   nominal gate ([`MAX_TARGET`]);
 //! - the band term: a quadratic hinge on how far a sample lies beyond its bound, starting
 //!   [`HINGE_WIDTH`] of the band inside it, weighted by [`PENALTY`]. The bound towards
 //!   the material (either side where it is not known) is the band, away from it
@@ -40,7 +41,8 @@ pub const MAX_BINS: usize = 20_000;
 /// RMS over the original's at which the RMS term is 1: the nominal gate (0.3).
 pub const RMS_TARGET: f64 = 0.3;
 
-/// Max over the original's at which the max term is about 1: the nominal gate (0.5).
+/// Ratio of the distance's 8-norm to the original's at which the max term is 1: the
+/// nominal max gate (0.5).
 pub const MAX_TARGET: f64 = 0.5;
 
 /// Bound away from the material where the side is known, mm: the tool may leave the path
@@ -209,12 +211,22 @@ impl<'a> Objective<'a> {
 
     /// [`Objective::run`] of a program with its own path-control modes (a program text
     /// written from the answer and read back).
-    pub fn run_with(&self, k: usize, program: &Program, control: &PathControl) -> Result<Acc, Error> {
+    pub fn run_with(
+        &self,
+        k: usize,
+        program: &Program,
+        control: &PathControl,
+    ) -> Result<Acc, Error> {
         let m = &self.models[k];
         let mut cmd = interpolate_with(program, control, &m.machine, m.period_s, MAX_PERIODS)?;
         let periods = cmd.t.len();
         // Hold the last command until the slowest axis has settled.
-        let kv = m.machine.axes.iter().map(|a| a.servo.kv).fold(f64::INFINITY, f64::min);
+        let kv = m
+            .machine
+            .axes
+            .iter()
+            .map(|a| a.servo.kv)
+            .fold(f64::INFINITY, f64::min);
         let extra = (SETTLE_TIME_CONSTANTS / kv / m.period_s).ceil() as usize;
         for c in &mut cmd.axes {
             let last = *c.last().unwrap_or(&0.0);
@@ -222,7 +234,9 @@ impl<'a> Objective<'a> {
         }
         let last_line = *cmd.line.last().unwrap_or(&0);
         cmd.line.resize(periods + extra, last_line);
-        cmd.t = (0..periods + extra).map(|i| i as f64 * m.period_s).collect();
+        cmd.t = (0..periods + extra)
+            .map(|i| i as f64 * m.period_s)
+            .collect();
         let actual = simulate_machine(&m.machine, &cmd)?;
         let n = actual[0].len();
         let nb = self.nb;
@@ -250,7 +264,9 @@ impl<'a> Objective<'a> {
         let mut cursor = 0;
         for i in 0..n {
             let q = tip(i);
-            let Some(foot) = self.path.foot(q, cursor) else { continue };
+            let Some(foot) = self.path.foot(q, cursor) else {
+                continue;
+            };
             cursor = foot.seg;
             let seg = &self.path.segs[foot.seg];
             let x = (foot.s / self.bin_mm - 0.5).max(0.0);
@@ -317,7 +333,9 @@ impl<'a> Objective<'a> {
             let sw = omega.sqrt();
             let w0 = base.weight.max(1e-12);
             let rms0 = RMS_TARGET * base.rms_distance().max(1e-9);
-            let max4 = (MAX_TARGET * base.max.max(1e-9)).powi(4);
+            // ‖d₀‖₈⁴ = √(Σ w d₀⁸ / W₀).
+            let norm8 = (base.m8.iter().sum::<f64>() / w0).sqrt().max(1e-36);
+            let max4 = MAX_TARGET.powi(4) * norm8;
             for b in 0..self.nb {
                 let row = 3 * (k * self.nb + b);
                 r[row] = sw * (run.sq[b] / w0).sqrt() / rms0;

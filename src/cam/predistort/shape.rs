@@ -18,8 +18,8 @@
 
 use super::path::{Geom, Path};
 use crate::cam::paths::sub_arc;
-use crate::motion::program::{Block, Feed, Motion, Plane, Pose, Program};
 use crate::motion::Machine;
+use crate::motion::program::{Block, Feed, Motion, Plane, Pose, Program};
 use crate::numeric::vec3::{add, dot, norm, scale, sub};
 
 /// Smallest turn of a junction that is a corner feature, rad (5°): below it the junction is
@@ -193,7 +193,9 @@ impl Shape {
         };
         let settle = |v: f64| super::SETTLE_TIME_CONSTANTS * tau * v;
         for i in 0..nb {
-            let (Some(si), true) = (seg_of[i], movable(i)) else { continue };
+            let (Some(si), true) = (seg_of[i], movable(i)) else {
+                continue;
+            };
             let b = &program.blocks[i];
             let seg = &path.segs[si];
             let f_mm_s = feed_of(b).unwrap_or(0.0) / 60.0;
@@ -216,8 +218,8 @@ impl Shape {
                     } else {
                         [0.0; 3]
                     };
-                    let planar = level(&seg.geom).is_some()
-                        && level(&seg.geom) == level(&next.geom);
+                    let planar =
+                        level(&seg.geom).is_some() && level(&seg.geom) == level(&next.geom);
                     let reach = if planar {
                         REACH_FACTOR * near.max_dist[i].max(near.max_dist[i + 1]).max(band_mm)
                     } else {
@@ -254,9 +256,18 @@ impl Shape {
         }
         // Arcs, after the corners: a feature's window is all that matters for its order.
         for i in 0..nb {
-            let (Some(si), true) = (seg_of[i], movable(i)) else { continue };
+            let (Some(si), true) = (seg_of[i], movable(i)) else {
+                continue;
+            };
             let seg = &path.segs[si];
-            let Geom::Arc { plane: Plane::Xy, radius, .. } = seg.geom else { continue };
+            let Geom::Arc {
+                plane: Plane::Xy,
+                radius,
+                ..
+            } = seg.geom
+            else {
+                continue;
+            };
             let v = feed_of(&program.blocks[i]).unwrap_or(0.0) / 60.0;
             let trans = (TRANSITION_TIME_CONSTANTS * tau * v).min(MAX_LENGTH_SHARE * seg.len);
             if trans <= 0.0 || radius <= 0.0 {
@@ -286,8 +297,11 @@ impl Shape {
         self.features.push(f);
         self.lo.extend_from_slice(lo);
         self.hi.extend_from_slice(hi);
-        self.x0
-            .extend(x0.iter().zip(lo.iter().zip(hi)).map(|(x, (l, h))| x.clamp(*l, *h)));
+        self.x0.extend(
+            x0.iter()
+                .zip(lo.iter().zip(hi))
+                .map(|(x, (l, h))| x.clamp(*l, *h)),
+        );
         self.step.extend_from_slice(st);
         self.window.push(w);
     }
@@ -319,7 +333,13 @@ impl Shape {
 
     /// The pieces of block `i` under `x`, starting where the block before ended (`start`,
     /// mm); `None` when the block is written as programmed.
-    pub fn pieces(&self, program: &Program, i: usize, start: [f64; 3], x: &[f64]) -> Option<Vec<Piece>> {
+    pub fn pieces(
+        &self,
+        program: &Program,
+        i: usize,
+        start: [f64; 3],
+        x: &[f64],
+    ) -> Option<Vec<Piece>> {
         // A corner at full feed whose point stays, an arc whose radius stays: no feature.
         let corner_on = |k: &usize| {
             let o = self.offset[*k];
@@ -465,7 +485,10 @@ impl Shape {
                         blocks.push(Block {
                             line: b.line,
                             motion,
-                            start: Pose { xyz: from, ..b.start },
+                            start: Pose {
+                                xyz: from,
+                                ..b.start
+                            },
                             end: Pose { xyz: end, ..b.end },
                             feed: Feed::PerMinute(f),
                             rtcp: b.rtcp,
@@ -550,7 +573,8 @@ impl Shape {
         if lines.is_empty() || x.is_empty() {
             return Vec::new();
         }
-        let (mut corners, mut lowest, mut longest, mut moved) = (Vec::new(), 1.0f64, 0.0f64, 0.0f64);
+        let (mut corners, mut lowest, mut longest, mut moved) =
+            (Vec::new(), 1.0f64, 0.0f64, 0.0f64);
         let (mut arcs, mut radius) = (Vec::new(), 0.0f64);
         for (k, f) in self.features.iter().enumerate() {
             let o = self.offset[k];

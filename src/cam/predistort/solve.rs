@@ -126,7 +126,11 @@ pub fn solve(
                 for &k in &members {
                     let p = shape.offset[k] + slot;
                     let step = shape.step[p].min(shape.hi[p] - shape.lo[p]);
-                    h[p] = if x[p] + step <= shape.hi[p] { step } else { -step };
+                    h[p] = if x[p] + step <= shape.hi[p] {
+                        step
+                    } else {
+                        -step
+                    };
                     xp[p] = x[p] + h[p];
                 }
                 let e = eval(&xp)?;
@@ -250,7 +254,10 @@ mod tests {
             for (i, &a) in v.iter().enumerate() {
                 for &b in &v[i + 1..] {
                     let (x, y) = (&bins[a], &bins[b]);
-                    assert!(x.end <= y.start || y.end <= x.start, "{x:?} {y:?} share a colour");
+                    assert!(
+                        x.end <= y.start || y.end <= x.start,
+                        "{x:?} {y:?} share a colour"
+                    );
                 }
             }
         }

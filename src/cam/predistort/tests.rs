@@ -31,7 +31,8 @@ const SQUARE: &str = "G90 G17 G94\nG1 Z-1 F2000\nG1 X10 Y0\nG1 X30 Y0\nG1 X30 Y2
 /// The invariants of issue 39 item 1 on an answer of `program`.
 fn check_invariants(program: &Program, out: &Predistorted) {
     for (line, pieces) in &out.lines {
-        let blocks: Vec<&gcode::Block> = program.blocks.iter().filter(|b| b.line == *line).collect();
+        let blocks: Vec<&gcode::Block> =
+            program.blocks.iter().filter(|b| b.line == *line).collect();
         assert_eq!(blocks.len(), 1, "line {line}: one block a rewritten line");
         let b = blocks[0];
         assert!(pieces.len() <= 3, "line {line}: {} pieces", pieces.len());
@@ -41,18 +42,29 @@ fn check_invariants(program: &Program, out: &Predistorted) {
         for p in pieces {
             let (end, feed) = match *p {
                 Piece::Line { end, feed_mm_min } => {
-                    assert!(matches!(b.motion, gcode::Motion::Linear), "line {line}: a line of an arc");
+                    assert!(
+                        matches!(b.motion, gcode::Motion::Linear),
+                        "line {line}: a line of an arc"
+                    );
                     (end, feed_mm_min)
                 }
-                Piece::Arc { end, feed_mm_min, .. } => {
-                    assert!(matches!(b.motion, gcode::Motion::Arc { .. }), "line {line}: an arc of a line");
+                Piece::Arc {
+                    end, feed_mm_min, ..
+                } => {
+                    assert!(
+                        matches!(b.motion, gcode::Motion::Arc { .. }),
+                        "line {line}: an arc of a line"
+                    );
                     (end, feed_mm_min)
                 }
             };
             assert!(feed <= f + 1e-9, "line {line}: feed {feed} above F{f}");
             assert!(feed >= MIN_FEED_FRACTION * f - 1e-9);
             if b.start.xyz[2] == b.end.xyz[2] {
-                assert!((end[2] - b.end.xyz[2]).abs() < 1e-12, "line {line}: Z moved on a 2-D cut");
+                assert!(
+                    (end[2] - b.end.xyz[2]).abs() < 1e-12,
+                    "line {line}: Z moved on a 2-D cut"
+                );
             }
         }
     }
@@ -85,7 +97,11 @@ fn square_corners_improve_on_every_model_within_the_duration() {
             mf.compensated.rms_distance_mm / mf.original.rms_distance_mm,
             mf.compensated.max_mm / mf.original.max_mm
         );
-        assert!(mf.compensated.rms_distance_mm < mf.original.rms_distance_mm, "{}", mf.model);
+        assert!(
+            mf.compensated.rms_distance_mm < mf.original.rms_distance_mm,
+            "{}",
+            mf.model
+        );
     }
     assert!(r < 0.6 && x < 0.8, "RMS {r}, max {x}");
     assert!(t <= DEFAULT_MAX_DURATION_RATIO + 1e-9, "duration {t}");
@@ -100,7 +116,9 @@ fn a_circle_stays_an_arc_with_a_larger_radius() {
     let pieces = out.lines.get(&3).expect("the circle is rewritten");
     assert!(pieces.iter().all(|p| matches!(p, Piece::Arc { .. })));
     // The middle piece runs about the original centre (-10, 15) on a larger radius.
-    let Piece::Arc { end, centre, .. } = pieces[pieces.len() / 2] else { unreachable!() };
+    let Piece::Arc { end, centre, .. } = pieces[pieces.len() / 2] else {
+        unreachable!()
+    };
     let r = (end[0] - centre[0]).hypot(end[1] - centre[1]);
     assert!(r > 10.0, "radius {r}");
     assert!(
@@ -115,20 +133,43 @@ fn a_circle_stays_an_arc_with_a_larger_radius() {
 fn no_iterations_change_nothing() {
     let m = machine_kv(40.0);
     let p = read(SQUARE);
-    let out = predistort(&m, &p, &PredistortOptions { max_iterations: 0, ..opts() }).unwrap();
+    let out = predistort(
+        &m,
+        &p,
+        &PredistortOptions {
+            max_iterations: 0,
+            ..opts()
+        },
+    )
+    .unwrap();
     assert!(out.lines.is_empty());
-    assert_eq!(out.original.rms_distance_mm, out.compensated.rms_distance_mm);
+    assert_eq!(
+        out.original.rms_distance_mm,
+        out.compensated.rms_distance_mm
+    );
 }
 
 #[test]
-fn kept_lines_and_plunges_are_never_rewritten() {
+fn kept_lines_stay_and_plunges_stay_on_their_axis() {
     let m = machine_kv(40.0);
     let p = read(SQUARE);
-    let out = predistort_sided(&m, &p, &PathControl::default(), &opts(), &|l| l == 4, &|_| None)
-        .unwrap();
+    let out = predistort_sided(
+        &m,
+        &p,
+        &PathControl::default(),
+        &opts(),
+        &|l| l == 4,
+        &|_| None,
+    )
+    .unwrap();
     assert!(!out.lines.contains_key(&4));
-    // The plunge (line 2) has no corner in its XY level and no arc: never rewritten.
-    assert!(!out.lines.contains_key(&2));
+    // The plunge (line 2) may only be slowed before its corner: its pieces stay on Z.
+    for p in out.lines.get(&2).into_iter().flatten() {
+        let Piece::Line { end, .. } = *p else {
+            panic!("an arc on a plunge")
+        };
+        assert_eq!((end[0], end[1]), (0.0, 0.0), "an X/Y word on a pure Z move");
+    }
 }
 
 #[test]
@@ -136,7 +177,17 @@ fn the_model_set_spans_gain_feed_forward_and_period() {
     let m = machine_kv(40.0);
     let set = model_set(&m, 1e-3);
     let names: Vec<&str> = set.iter().map(|m| m.name.as_str()).collect();
-    assert_eq!(names, ["nominal", "kv -15 %", "kv +15 %", "kff -0.1", "kff +0.1", "period x0.5"]);
+    assert_eq!(
+        names,
+        [
+            "nominal",
+            "kv -15 %",
+            "kv +15 %",
+            "kff -0.1",
+            "kff +0.1",
+            "period x0.5"
+        ]
+    );
     assert_eq!(set[1].machine.axes[0].servo.kv, 40.0 * 0.85);
     assert!((set[4].machine.axes[0].servo.kff - 0.7).abs() < 1e-12);
     assert_eq!(set[5].period_s, 5e-4);
@@ -146,8 +197,42 @@ fn the_model_set_spans_gain_feed_forward_and_period() {
 fn options_out_of_range_are_named() {
     let m = machine_kv(40.0);
     let p = read(SQUARE);
-    let e = predistort(&m, &p, &PredistortOptions { band_mm: 0.0, ..opts() }).unwrap_err();
-    assert!(matches!(e, Error::Option { field: "band_mm", .. }), "{e}");
-    let e = predistort(&m, &p, &PredistortOptions { max_duration_ratio: 3.0, ..opts() }).unwrap_err();
-    assert!(matches!(e, Error::Option { field: "max_duration_ratio", .. }), "{e}");
+    let e = predistort(
+        &m,
+        &p,
+        &PredistortOptions {
+            band_mm: 0.0,
+            ..opts()
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Option {
+                field: "band_mm",
+                ..
+            }
+        ),
+        "{e}"
+    );
+    let e = predistort(
+        &m,
+        &p,
+        &PredistortOptions {
+            max_duration_ratio: 3.0,
+            ..opts()
+        },
+    )
+    .unwrap_err();
+    assert!(
+        matches!(
+            e,
+            Error::Option {
+                field: "max_duration_ratio",
+                ..
+            }
+        ),
+        "{e}"
+    );
 }

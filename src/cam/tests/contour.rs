@@ -51,7 +51,10 @@ fn contour_keeps_rapids_and_cycles() {
     // The arc stays arcs (at most three), its feed never above F1500.
     let arc = of(5);
     assert!((1..=3).contains(&arc.len()), "{arc:?}");
-    assert!(arc[0].contains("G3") && arc.iter().all(|l| !l.contains("G1")), "{arc:?}");
+    assert!(
+        arc[0].contains("G3") && arc.iter().all(|l| !l.contains("G1")),
+        "{arc:?}"
+    );
     for l in out.gcode.lines() {
         for f in l.split_whitespace().filter_map(|w| w.strip_prefix('F')) {
             assert!(f.parse::<f64>().unwrap() <= 1500.0, "{l}");
