@@ -789,8 +789,8 @@ async fn contour_precompensation_at_corners(app: TestApp) {
         );
     }
     let src: Vec<usize> = serde_json::from_value(body["source_lines"].clone()).unwrap();
-    // Lines 5 (N20, G41) and 6 (N30, the move after) come back as one line each.
-    for l in [5, 6, 10] {
+    // Lines 4 (N20, G41), 5 (N30, the move after) and 9 (N70, G40) come back as one line each.
+    for l in [4, 5, 9] {
         assert_eq!(
             src.iter().filter(|&&s| s == l).count(),
             1,

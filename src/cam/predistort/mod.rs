@@ -288,7 +288,7 @@ pub fn predistort_sided(
         best = neutral.clone();
         BTreeMap::new()
     };
-    notes.extend(shape.describe(&x, &lines, program));
+    notes.extend(describe(&shape, &x, &lines, program));
     let models: Vec<ModelFigures> = obj
         .models
         .iter()
@@ -314,6 +314,7 @@ pub fn predistort_sided(
 /// path-control modes `written_control`) against the original `program` on the model set of
 /// `machine` (the same measure as [`predistort_sided`]'s, with the same `keep`, `side` and
 /// options): nominal first.
+#[allow(clippy::too_many_arguments)]
 pub fn judge(
     machine: &Machine,
     program: &Program,
@@ -345,6 +346,62 @@ pub fn judge(
             })
         })
         .collect()
+}
+
+/// Sentences on what parameters `x` of `shape` change (empty when `lines` is: nothing
+/// written).
+fn describe(
+    shape: &shape::Shape,
+    x: &[f64],
+    lines: &std::collections::BTreeMap<usize, Vec<Piece>>,
+    program: &Program,
+) -> Vec<String> {
+    if lines.is_empty() || x.is_empty() {
+        return Vec::new();
+    }
+    let (mut corners, mut lowest, mut longest, mut moved) = (Vec::new(), 1.0f64, 0.0f64, 0.0f64);
+    let (mut arcs, mut radius) = (Vec::new(), 0.0f64);
+    for (k, f) in shape.features.iter().enumerate() {
+        let o = shape.offset[k];
+        match f {
+            shape::Feature::Corner { line, .. } => {
+                if x[o + 3] < 1.0 || x[o] != 0.0 || x[o + 1] != 0.0 {
+                    corners.push(*line);
+                    if x[o + 3] < 1.0 {
+                        lowest = lowest.min(x[o + 3]);
+                        longest = longest.max(x[o + 2]);
+                    }
+                    moved = moved.max(x[o].hypot(x[o + 1]));
+                }
+            }
+            shape::Feature::Arc { line, block } => {
+                if x[o] != 0.0 && lines.contains_key(&program.blocks[*block].line) {
+                    arcs.push(*line);
+                    radius = radius.max(x[o].abs());
+                }
+            }
+        }
+    }
+    let mut out = Vec::new();
+    if !corners.is_empty() {
+        out.push(format!(
+            "{} corner(s) pre-distorted: feed lowered to {:.0} % of F at the lowest over \
+                 stretches of up to {:.3} mm, corner points moved by up to {:.1} µm",
+            corners.len(),
+            100.0 * lowest,
+            longest,
+            1e3 * moved,
+        ));
+    }
+    if !arcs.is_empty() {
+        out.push(format!(
+            "{} arc(s) written as three sub-arcs with the radius changed by up to {:.1} µm \
+                 against the servo's radius loss",
+            arcs.len(),
+            1e3 * radius
+        ));
+    }
+    out
 }
 
 #[cfg(test)]

@@ -261,13 +261,14 @@ impl<'a> Objective<'a> {
             ]
         };
         let hinge_start = HINGE_WIDTH * self.band_mm;
-        let mut cursor = 0;
+        let (mut cursor, mut s_prev) = (0, 0.0);
         for i in 0..n {
             let q = tip(i);
-            let Some(foot) = self.path.foot(q, cursor) else {
+            let Some(foot) = self.path.foot(q, cursor, s_prev) else {
                 continue;
             };
             cursor = foot.seg;
+            s_prev = foot.s;
             let seg = &self.path.segs[foot.seg];
             let x = (foot.s / self.bin_mm - 0.5).max(0.0);
             let b0 = (x.floor() as usize).min(nb - 2);

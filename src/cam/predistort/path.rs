@@ -5,6 +5,11 @@ use super::MaterialSide;
 use crate::motion::program::{Block, Feed, Motion, Plane, Program};
 use crate::numeric::vec3::{add, dist, dot, norm, scale, sub};
 
+/// Feet whose distances differ by less than this (mm) are ties, decided by continuity: the
+/// one nearest along the path to the last foot. Overlapping geometry (a circle run twice, a
+/// contour retraced) gives exact ties; 0.1 µm is the last printed digit.
+pub const FOOT_TIE_MM: f64 = 1e-4;
+
 /// How far ahead of the last foot (mm of path) the next foot is looked for. The tool tip
 /// moves less than a millimetre a period at any feed a servo model allows, and a corner's
 /// error is below a millimetre; 5 mm keeps a path that passes close to itself further on
@@ -247,36 +252,45 @@ impl Path {
         Path { segs, total: s0 }
     }
 
-    /// The foot of `q` on the path, searched from segment `from` (the last foot's) over the
-    /// segments that start within [`SEARCH_AHEAD_MM`] of it (and the one before).
-    pub fn foot(&self, q: [f64; 3], from: usize) -> Option<Foot> {
+    /// The foot of `q` on the path, searched from segment `from` (the last foot's, at path
+    /// length `s_prev`) over the segments that start within [`SEARCH_AHEAD_MM`] of it (and
+    /// the one before); ties within [`FOOT_TIE_MM`] go to the foot nearest to `s_prev`.
+    pub fn foot(&self, q: [f64; 3], from: usize, s_prev: f64) -> Option<Foot> {
         let lo = from.saturating_sub(1);
         let limit = self.segs.get(from).map_or(0.0, |s| s.s0 + s.len) + SEARCH_AHEAD_MM;
-        let mut best: Option<Foot> = None;
+        let mut cands: Vec<(usize, f64, f64)> = Vec::new();
         for (k, seg) in self.segs.iter().enumerate().skip(lo) {
             if k > from + 1 && seg.s0 > limit {
                 break;
             }
             let (t, d) = seg.geom.nearest(q);
-            if best.is_none_or(|b| d < b.dist - 1e-12) {
-                let tan = seg.geom.tangent(t);
-                let (p0, p1, _) = seg.geom.plane().axes();
-                let v = sub(q, seg.geom.at(t));
-                let in_plane = tan[p0].hypot(tan[p1]);
-                let lateral = if in_plane > 0.5 {
-                    (tan[p0] * v[p1] - tan[p1] * v[p0]) / in_plane
-                } else {
-                    0.0
-                };
-                best = Some(Foot {
-                    s: seg.s0 + t * seg.len,
-                    dist: d,
-                    lateral,
-                    seg: k,
-                });
-            }
+            cands.push((k, t, d));
         }
-        best
+        let dmin = cands.iter().map(|c| c.2).fold(f64::INFINITY, f64::min);
+        let &(k, t, d) = cands
+            .iter()
+            .filter(|c| c.2 <= dmin + FOOT_TIE_MM)
+            .min_by(|a, b| {
+                let sa = self.segs[a.0].s0 + a.1 * self.segs[a.0].len;
+                let sb = self.segs[b.0].s0 + b.1 * self.segs[b.0].len;
+                (sa - s_prev).abs().total_cmp(&(sb - s_prev).abs())
+            })?;
+        let seg = &self.segs[k];
+        let tan = seg.geom.tangent(t);
+        let (p0, p1, _) = seg.geom.plane().axes();
+        let v = sub(q, seg.geom.at(t));
+        let in_plane = tan[p0].hypot(tan[p1]);
+        let lateral = if in_plane > 0.5 {
+            (tan[p0] * v[p1] - tan[p1] * v[p0]) / in_plane
+        } else {
+            0.0
+        };
+        Some(Foot {
+            s: seg.s0 + t * seg.len,
+            dist: d,
+            lateral,
+            seg: k,
+        })
     }
 }
 

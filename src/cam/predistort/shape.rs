@@ -255,8 +255,8 @@ impl Shape {
             }
         }
         // Arcs, after the corners: a feature's window is all that matters for its order.
-        for i in 0..nb {
-            let (Some(si), true) = (seg_of[i], movable(i)) else {
+        for (i, &si) in seg_of.iter().enumerate() {
+            let (Some(si), true) = (si, movable(i)) else {
                 continue;
             };
             let seg = &path.segs[si];
@@ -560,62 +560,4 @@ fn level(g: &Geom) -> Option<f64> {
         Geom::Arc { .. } => return None,
     };
     ((a[2] - b[2]).abs() < 1e-9).then_some(a[2])
-}
-
-impl Shape {
-    /// Sentences on what parameters `x` change (empty when `lines` is: nothing written).
-    pub fn describe(
-        &self,
-        x: &[f64],
-        lines: &std::collections::BTreeMap<usize, Vec<Piece>>,
-        program: &Program,
-    ) -> Vec<String> {
-        if lines.is_empty() || x.is_empty() {
-            return Vec::new();
-        }
-        let (mut corners, mut lowest, mut longest, mut moved) =
-            (Vec::new(), 1.0f64, 0.0f64, 0.0f64);
-        let (mut arcs, mut radius) = (Vec::new(), 0.0f64);
-        for (k, f) in self.features.iter().enumerate() {
-            let o = self.offset[k];
-            match f {
-                Feature::Corner { line, .. } => {
-                    if x[o + 3] < 1.0 || x[o] != 0.0 || x[o + 1] != 0.0 {
-                        corners.push(*line);
-                        if x[o + 3] < 1.0 {
-                            lowest = lowest.min(x[o + 3]);
-                            longest = longest.max(x[o + 2]);
-                        }
-                        moved = moved.max(x[o].hypot(x[o + 1]));
-                    }
-                }
-                Feature::Arc { line, block } => {
-                    if x[o] != 0.0 && lines.contains_key(&program.blocks[*block].line) {
-                        arcs.push(*line);
-                        radius = radius.max(x[o].abs());
-                    }
-                }
-            }
-        }
-        let mut out = Vec::new();
-        if !corners.is_empty() {
-            out.push(format!(
-                "{} corner(s) pre-distorted: feed lowered to {:.0} % of F at the lowest over \
-                 stretches of up to {:.3} mm, corner points moved by up to {:.1} µm",
-                corners.len(),
-                100.0 * lowest,
-                longest,
-                1e3 * moved,
-            ));
-        }
-        if !arcs.is_empty() {
-            out.push(format!(
-                "{} arc(s) written as three sub-arcs with the radius changed by up to {:.1} µm \
-                 against the servo's radius loss",
-                arcs.len(),
-                1e3 * radius
-            ));
-        }
-        out
-    }
 }
