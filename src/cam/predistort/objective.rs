@@ -9,10 +9,9 @@
 //! residuals:
 //! - the RMS term √(Σ w d² / W₀) / (0.3 · RMS₀): its squares sum to (RMS / (0.3 RMS₀))²,
 //!   1 at the nominal gate ([`RMS_TARGET`]);
-//! - the max term √(Σ w d⁸ / W₀) / (0.5⁴ · ‖d₀‖₈⁴): squares summing to the ratio of the
-//!   8-norm of the distance to the original's, over 0.5, to the 8th power — a smooth
-//!   stand-in for the max ratio (a corner's peak dominates an 8-norm) that is 1 at the
-//!   nominal gate ([`MAX_TARGET`]);
+//! - the max term √(Σ w d⁸ / W₀) / (0.5 · max₀)⁴: squares summing to the 8-norm of the
+//!   distance over 0.5 max₀, to the 8th power — a smooth stand-in for the max that is 1
+//!   where the 8-norm reaches the nominal max gate ([`MAX_TARGET`]);
 //! - the band term: a quadratic hinge on how far a sample lies beyond its bound, starting
 //!   [`HINGE_WIDTH`] of the band inside it, weighted by [`PENALTY`]. The bound towards
 //!   the material (either side where it is not known) is the band, away from it
@@ -41,8 +40,7 @@ pub const MAX_BINS: usize = 20_000;
 /// RMS over the original's at which the RMS term is 1: the nominal gate (0.3).
 pub const RMS_TARGET: f64 = 0.3;
 
-/// Ratio of the distance's 8-norm to the original's at which the max term is 1: the
-/// nominal max gate (0.5).
+/// Share of the original's max at which the max term is 1: the nominal max gate (0.5).
 pub const MAX_TARGET: f64 = 0.5;
 
 /// Bound away from the material where the side is known, mm: the tool may leave the path
@@ -334,9 +332,7 @@ impl<'a> Objective<'a> {
             let sw = omega.sqrt();
             let w0 = base.weight.max(1e-12);
             let rms0 = RMS_TARGET * base.rms_distance().max(1e-9);
-            // ‖d₀‖₈⁴ = √(Σ w d₀⁸ / W₀).
-            let norm8 = (base.m8.iter().sum::<f64>() / w0).sqrt().max(1e-36);
-            let max4 = MAX_TARGET.powi(4) * norm8;
+            let max4 = (MAX_TARGET * base.max.max(1e-9)).powi(4);
             for b in 0..self.nb {
                 let row = 3 * (k * self.nb + b);
                 r[row] = sw * (run.sq[b] / w0).sqrt() / rms0;
