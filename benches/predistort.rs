@@ -9,7 +9,7 @@
 use std::time::Instant;
 
 use serde_json::json;
-use truecut::cam::{DEFAULT_MAX_DURATION_RATIO, PredistortOptions, predistort};
+use truecut::cam::{DEFAULT_BAND_MM, DEFAULT_MAX_DURATION_RATIO, PredistortOptions, predistort};
 use truecut::motion::{Machine, Program, gcode, predict_program};
 
 fn machine() -> Machine {
@@ -48,6 +48,7 @@ fn run(name: &str, m: &Machine, prog: &Program) {
         period_s: 1e-3,
         max_iterations: 30,
         max_duration_ratio: DEFAULT_MAX_DURATION_RATIO,
+        band_mm: DEFAULT_BAND_MM,
     };
     // Warm-up, then the best of three of each.
     let _ = predistort(m, prog, &opts).expect("predistort");
@@ -69,11 +70,11 @@ fn run(name: &str, m: &Machine, prog: &Program) {
     }
     let out = out.expect("ran");
     println!(
-        "{name}: {duration_s:.1} s of machine time, {} iterations, {} points; predistort {:.3} s wall \
+        "{name}: {duration_s:.1} s of machine time, {} iterations, {} lines rewritten; predistort {:.3} s wall \
          = {:.0}x real time (goal >= 100x); baseline predict_program {:.3} s ({:.0}x real time); \
          ratio predistort/predict {:.1}; RMS {:.2} -> {:.2} um ({:.3}x), max {:.2} -> {:.2} um ({:.3}x)",
         out.iterations,
-        out.points.len(),
+        out.lines.len(),
         wall,
         duration_s / wall,
         base,

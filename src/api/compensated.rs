@@ -121,8 +121,9 @@ pub struct ProgramRequest {
     /// Volumetric pre-compensation (default: true when the machine has a map).
     #[serde(default)]
     pub volumetric: Option<bool>,
-    /// Contour pre-distortion: the program rewritten as G1 points (same feeds) that the
-    /// machine's servo model follows along the original path (default false).
+    /// Contour pre-distortion: corners slowed and their points moved, arcs given a corrected
+    /// radius, so that the machine's servo model follows the original path over a set of
+    /// models (default false).
     #[serde(default)]
     pub contour: Option<bool>,
     /// Interpolation period of the contour model, s.
@@ -132,6 +133,11 @@ pub struct ProgramRequest {
     /// program's, 1..=2 (default 1.15): the time the corners may take.
     #[serde(default)]
     pub max_duration_ratio: Option<f64>,
+    /// With `contour`: half-width of the tolerance band about the path, mm (default 0.01):
+    /// the simulated tool may leave the path towards the material (on both sides without
+    /// G41/G42) by at most this much, or by what the original already did.
+    #[serde(default)]
+    pub band_mm: Option<f64>,
     /// Largest distance of the written path from the compensated path, mm (default 0.001).
     #[serde(default)]
     pub tolerance_mm: Option<f64>,
@@ -199,8 +205,44 @@ pub struct ContourFigures {
     pub compensated_rms_mm: f64,
     /// Max distance with the returned program, mm.
     pub compensated_max_mm: f64,
-    /// Pre-distortion iterations taken.
+    /// Distance-weighted RMS (each period weighted by the path it covers), original, mm.
+    pub original_rms_distance_mm: f64,
+    /// Distance-weighted RMS with the returned program, mm.
+    pub compensated_rms_distance_mm: f64,
+    /// Duration of the returned program over the original's (nominal model).
+    pub duration_ratio: f64,
+    /// Optimiser iterations taken.
     pub iterations: usize,
+    /// The returned program on every model of the set (nominal first): ratios to the
+    /// original on the same model.
+    pub models: Vec<ModelRatios>,
+}
+
+/// How the returned program does on one model of the set.
+#[derive(Debug, Serialize)]
+pub struct ModelRatios {
+    /// "nominal", "kv -15 %", "kv +15 %", "kff -0.1", "kff +0.1", "period x0.5".
+    pub model: String,
+    /// Distance-weighted RMS, returned over original.
+    pub rms_ratio: f64,
+    /// Max distance, returned over original.
+    pub max_ratio: f64,
+    /// Duration, returned over original.
+    pub duration_ratio: f64,
+    /// Largest excursion beyond the band (towards the material) where the original stayed
+    /// within it, mm (≤ 0: none).
+    pub gouge_mm: f64,
+}
+
+/// `a / b`, 1 when both are 0 (nothing to compare).
+fn ratio(a: f64, b: f64) -> f64 {
+    if b > 0.0 {
+        a / b
+    } else if a > 0.0 {
+        f64::INFINITY
+    } else {
+        1.0
+    }
 }
 
 /// The machine's map, or 409 when it has none.
@@ -289,6 +331,15 @@ async fn compensated_program(
     let max_duration_ratio = req
         .max_duration_ratio
         .unwrap_or(cam::DEFAULT_MAX_DURATION_RATIO);
+    let band_mm = req.band_mm.unwrap_or(cam::DEFAULT_BAND_MM);
+    if !(band_mm.is_finite() && cam::predistort::BAND_RANGE_MM.contains(&band_mm)) {
+        return Err(ApiError::bad_request(format!(
+            "band_mm must be within {}..{} mm (the tolerance band about the path; 0.01 by \
+             default), got {band_mm}",
+            cam::predistort::BAND_RANGE_MM.start(),
+            cam::predistort::BAND_RANGE_MM.end()
+        )));
+    }
     if !(1.0..=cam::MAX_DURATION_RATIO).contains(&max_duration_ratio) {
         return Err(ApiError::bad_request(format!(
             "max_duration_ratio must be within 1..{} (the compensated program's duration over the \
@@ -331,6 +382,12 @@ async fn compensated_program(
         None
     };
     let period_s = req.period_s.unwrap_or(DEFAULT_PERIOD_S);
+    let popts = cam::PredistortOptions {
+        period_s,
+        max_iterations: cam::MAX_ITERATIONS,
+        max_duration_ratio,
+        band_mm,
+    };
     let outcome = Door::new(&state, &headers, volumetric)
         .run(move || -> Result<_, cam::Error> {
             let note = |mut out: cam::Compensated| {
@@ -350,16 +407,11 @@ async fn compensated_program(
                     map,
                     tolerance_mm,
                     &machine,
-                    period_s,
-                    max_duration_ratio,
+                    &popts,
                 )?,
-                (None, Some(machine)) => cam::contour_program(
-                    &req.gcode,
-                    &options,
-                    &machine,
-                    period_s,
-                    max_duration_ratio,
-                )?,
+                (None, Some(machine)) => {
+                    cam::contour_program(&req.gcode, &options, &machine, &popts)?
+                }
                 (None, None) => unreachable!("volumetric or contour was checked above"),
             };
             let figures = ContourFigures {
@@ -367,7 +419,21 @@ async fn compensated_program(
                 original_max_mm: p.original.max_mm,
                 compensated_rms_mm: p.compensated.rms_mm,
                 compensated_max_mm: p.compensated.max_mm,
+                original_rms_distance_mm: p.original.rms_distance_mm,
+                compensated_rms_distance_mm: p.compensated.rms_distance_mm,
+                duration_ratio: ratio(p.compensated.duration_s, p.original.duration_s),
                 iterations: p.iterations,
+                models: p
+                    .models
+                    .iter()
+                    .map(|m| ModelRatios {
+                        model: m.model.clone(),
+                        rms_ratio: ratio(m.compensated.rms_distance_mm, m.original.rms_distance_mm),
+                        max_ratio: ratio(m.compensated.max_mm, m.original.max_mm),
+                        duration_ratio: ratio(m.compensated.duration_s, m.original.duration_s),
+                        gouge_mm: m.compensated.gouge_mm,
+                    })
+                    .collect(),
             };
             Ok((note(out), Some(figures)))
         })

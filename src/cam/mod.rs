@@ -6,8 +6,9 @@
 //! split into G1 points within the tolerance), `emit` (re-emission: axis words replaced in
 //! the program's own units and G90/G91 mode, a motion line replaceable by G1 points),
 //! `program` (the whole program), `points` (the points form, JSON or CSV), `error`.
-//! `predistort` (contour-error pre-compensation) rewrites the program as G1 points that the
-//! emitter writes through [`LinePlan::Points`].
+//! `predistort` (contour-error pre-compensation) chooses slowed stretches and moved points
+//! at corners and corrected radii of arcs, which the emitter writes through
+//! [`LinePlan::Points`] and [`LinePlan::Arcs`] (module `contour`).
 
 mod contour;
 mod emit;
@@ -27,8 +28,8 @@ pub use field::ErrorField;
 pub use paths::{Shifter, SubArc, arc_pieces, arc_point, linear_points, sub_arc};
 pub use points::{CompensatedPoints, compensate_points, points_from_csv, points_to_csv};
 pub use predistort::{
-    DEFAULT_MAX_DURATION_RATIO, ErrorStats, MAX_DURATION_RATIO, MaterialSide, PredistortOptions,
-    PredistortPoint, Predistorted, predistort, predistort_keeping, predistort_sided,
+    DEFAULT_BAND_MM, DEFAULT_MAX_DURATION_RATIO, ErrorStats, MAX_DURATION_RATIO, MaterialSide,
+    ModelFigures, Piece, PredistortOptions, Predistorted, predistort, predistort_sided,
 };
 pub use program::{
     Compensated, DEFAULT_TOLERANCE_MM, MAX_OUTPUT_BLOCKS, MAX_TOLERANCE_MM, MIN_TOLERANCE_MM,

@@ -211,9 +211,10 @@ async fn contour_as_a_followed_job_and_exit_codes() {
         "{direct}"
     );
 
-    // 5: the followed job failed (a dwell is refused by the contour pre-distortion).
-    let dwell = dir.path().join("dwell.nc");
-    std::fs::write(&dwell, "G21 G90\nG1 X5 F600\nG4 P1\nG1 X10\n").unwrap();
+    // 5: the followed job failed (the service refuses the arc).
+    // An arc whose R is shorter than half its chord: the service refuses it while reading.
+    let dwell = dir.path().join("bad_arc.nc");
+    std::fs::write(&dwell, "G21 G90\nG1 X5 F600\nG2 X10 Y0 R1\nG1 X12\n").unwrap();
     let mut argv = base.to_vec();
     argv.extend([
         "--contour",
@@ -225,7 +226,7 @@ async fn contour_as_a_followed_job_and_exit_codes() {
     assert_eq!(out.status.code(), Some(5), "{}", stderr(&out));
     assert!(stderr(&out).contains("failed"), "{}", stderr(&out));
     assert!(out.stdout.is_empty());
-    // 3: refused without a job (the same dwell, 422), an unknown machine (404), strict.
+    // 3: refused without a job (the same arc, 422), an unknown machine (404), strict.
     let mut argv = base.to_vec();
     argv.extend(["--contour", "--no-volumetric", dwell.to_str().unwrap()]);
     let out = truecut(&argv, b"").await;

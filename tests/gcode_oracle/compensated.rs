@@ -11,8 +11,8 @@
 
 use serde_json::json;
 use truecut::cam::{
-    DEFAULT_MAX_DURATION_RATIO, DEFAULT_TOLERANCE_MM, compensate_program, contour_program,
-    volumetric_and_contour,
+    DEFAULT_BAND_MM, DEFAULT_MAX_DURATION_RATIO, DEFAULT_TOLERANCE_MM, MAX_ITERATIONS,
+    PredistortOptions, compensate_program, contour_program, volumetric_and_contour,
 };
 use truecut::motion::{DEFAULT_PERIOD_S, Machine, ReadOptions};
 use truecut::volumetric::{FitOptions, ModelKind, ShapeFamily, SyntheticMachine, fit};
@@ -197,6 +197,16 @@ struct Failure {
     text: String,
 }
 
+/// The route's contour options (default period, duration limit and band).
+fn contour_options() -> PredistortOptions {
+    PredistortOptions {
+        period_s: DEFAULT_PERIOD_S,
+        max_iterations: MAX_ITERATIONS,
+        max_duration_ratio: DEFAULT_MAX_DURATION_RATIO,
+        band_mm: DEFAULT_BAND_MM,
+    }
+}
+
 /// Program `name` (`text`, read with `options`) compensated in `mode` (volumetric, contour
 /// or both) with the map `map` and the contour machine `machine`, its answer checked by
 /// [`check`] (rs274's files in `dir`).
@@ -217,22 +227,16 @@ fn one_case(
         "volumetric" => {
             compensate_program(text, options, map, DEFAULT_TOLERANCE_MM).map(|c| (c, None))
         }
-        "contour" => contour_program(
-            text,
-            options,
-            machine,
-            DEFAULT_PERIOD_S,
-            DEFAULT_MAX_DURATION_RATIO,
-        )
-        .map(|(c, p)| (c, Some(p))),
+        "contour" => {
+            contour_program(text, options, machine, &contour_options()).map(|(c, p)| (c, Some(p)))
+        }
         _ => volumetric_and_contour(
             text,
             options,
             map,
             DEFAULT_TOLERANCE_MM,
             machine,
-            DEFAULT_PERIOD_S,
-            DEFAULT_MAX_DURATION_RATIO,
+            &contour_options(),
         )
         .map(|(c, p)| (c, Some(p))),
     };

@@ -326,7 +326,7 @@ impl Emitter {
                         }
                     }
                     if let Some(f) = feeds.as_ref().and_then(|f| f.get(i)) {
-                        words.extend(self.feed_word(*f, true));
+                        words.extend(self.feed_word(*f, frame.inverse_time));
                     }
                     if i == 0 {
                         words.extend(restore.iter().cloned());

@@ -1,5 +1,6 @@
-//! Tests of the contour pass of the cam core (issue 24 item 3): rapids stay G0, cycles stay
-//! cycles, and the notes name source lines, with the volumetric pass before it too.
+//! Tests of the contour pass of the cam core (issues 24 and 39): rapids stay G0, cycles stay
+//! cycles, arcs stay arcs, feeds are never raised, and the notes name source lines, with the
+//! volumetric pass before it too.
 
 use super::*;
 
@@ -11,6 +12,15 @@ fn cascade() -> crate::motion::Machine {
     .unwrap()
 }
 
+fn popts() -> PredistortOptions {
+    PredistortOptions {
+        period_s: 0.001,
+        max_iterations: 10,
+        max_duration_ratio: DEFAULT_MAX_DURATION_RATIO,
+        band_mm: crate::cam::DEFAULT_BAND_MM,
+    }
+}
+
 const CYCLE_AND_CONTOUR: &str = "N1 G21 G90 G17 G94\nN2 G0 X0 Y0 Z10 S1000 M3\nN3 G1 Z-1 F600\n\
 N4 G1 X30 F1500\nN5 G3 X50 Y20 R20\nN6 G0 Z10\nN7 G99 G82 X20 Y20 Z-8 R2 P200 F150\nN8 X30\n\
 N9 G80\nN10 G0 X60 Y0\nN11 G1 Z-1 F600\nN12 X60 Y30 F1500\nN13 G0 Z20\nN14 M30\n";
@@ -18,14 +28,7 @@ N9 G80\nN10 G0 X60 Y0\nN11 G1 Z-1 F600\nN12 X60 Y30 F1500\nN13 G0 Z20\nN14 M30\n
 #[test]
 fn contour_keeps_rapids_and_cycles() {
     let opts = ReadOptions::default();
-    let (out, p) = contour_program(
-        CYCLE_AND_CONTOUR,
-        &opts,
-        &cascade(),
-        0.001,
-        DEFAULT_MAX_DURATION_RATIO,
-    )
-    .unwrap();
+    let (out, p) = contour_program(CYCLE_AND_CONTOUR, &opts, &cascade(), &popts()).unwrap();
     let lines: Vec<&str> = out.gcode.lines().collect();
     let of = |src: usize| -> Vec<&str> {
         (0..lines.len())
@@ -45,9 +48,18 @@ fn contour_keeps_rapids_and_cycles() {
             "line {l}: {w:?}"
         );
     }
-    // Feed moves are G1 points with F.
-    assert!(of(5).len() > 3);
-    assert!(!out.gcode.contains("G3"));
+    // The arc stays arcs (at most three), its feed never above F1500.
+    let arc = of(5);
+    assert!((1..=3).contains(&arc.len()), "{arc:?}");
+    assert!(
+        arc[0].contains("G3") && arc.iter().all(|l| !l.contains("G1")),
+        "{arc:?}"
+    );
+    for l in out.gcode.lines() {
+        for f in l.split_whitespace().filter_map(|w| w.strip_prefix('F')) {
+            assert!(f.parse::<f64>().unwrap() <= 1500.0, "{l}");
+        }
+    }
     // It reads back; rapids are rapids, the holes at the programmed feed, points exact.
     let (a, _) = parse_with(CYCLE_AND_CONTOUR, &opts).unwrap();
     let (b, _) = parse_with(&out.gcode, &opts).unwrap();
@@ -114,8 +126,7 @@ fn volumetric_and_contour_name_source_lines() {
         &curved(),
         0.001,
         &cascade(),
-        0.001,
-        DEFAULT_MAX_DURATION_RATIO,
+        &popts(),
     )
     .unwrap();
     let n = CYCLE_AND_CONTOUR.lines().count();
