@@ -49,7 +49,7 @@ pub struct Solved {
 }
 
 /// Colours of the features: features of one colour have disjoint bin windows.
-fn colours(bins: &[Range<usize>]) -> Vec<Vec<usize>> {
+pub(super) fn colours(bins: &[Range<usize>]) -> Vec<Vec<usize>> {
     let mut order: Vec<usize> = (0..bins.len()).collect();
     order.sort_by_key(|&k| bins[k].start);
     let mut out: Vec<(usize, Vec<usize>)> = Vec::new();
@@ -68,7 +68,8 @@ fn colours(bins: &[Range<usize>]) -> Vec<Vec<usize>> {
 /// Sparse column: (row, value) in row order, and the time row's value.
 type Column = (Vec<(usize, f64)>, f64);
 
-fn dot_sparse(a: &[(usize, f64)], b: &[(usize, f64)]) -> f64 {
+/// Σ a·b over the rows both sparse columns hold.
+pub(super) fn dot_sparse(a: &[(usize, f64)], b: &[(usize, f64)]) -> f64 {
     let (mut i, mut j, mut s) = (0, 0, 0.0);
     while i < a.len() && j < b.len() {
         match a[i].0.cmp(&b[j].0) {
@@ -240,35 +241,4 @@ pub fn solve(
         iterations,
         stalled,
     })
-}
-
-#[cfg(test)]
-mod tests {
-    use super::*;
-
-    #[test]
-    fn colours_keep_overlapping_windows_apart() {
-        let bins = vec![0..10, 5..15, 12..20, 30..40, 16..25];
-        let c = colours(&bins);
-        for v in &c {
-            for (i, &a) in v.iter().enumerate() {
-                for &b in &v[i + 1..] {
-                    let (x, y) = (&bins[a], &bins[b]);
-                    assert!(
-                        x.end <= y.start || y.end <= x.start,
-                        "{x:?} {y:?} share a colour"
-                    );
-                }
-            }
-        }
-        assert_eq!(c.iter().map(Vec::len).sum::<usize>(), bins.len());
-        assert!(c.len() <= 3, "{c:?}");
-    }
-
-    #[test]
-    fn sparse_dot_matches_dense() {
-        let a = [(1, 2.0), (3, 1.0), (7, -1.0)];
-        let b = [(0, 5.0), (3, 4.0), (7, 2.0), (9, 1.0)];
-        assert_eq!(dot_sparse(&a, &b), 4.0 - 2.0);
-    }
 }

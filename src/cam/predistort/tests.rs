@@ -236,3 +236,29 @@ fn options_out_of_range_are_named() {
         "{e}"
     );
 }
+
+#[test]
+fn colours_keep_overlapping_windows_apart() {
+    let bins = vec![0..10, 5..15, 12..20, 30..40, 16..25];
+    let c = solve::colours(&bins);
+    for v in &c {
+        for (i, &a) in v.iter().enumerate() {
+            for &b in &v[i + 1..] {
+                let (x, y) = (&bins[a], &bins[b]);
+                assert!(
+                    x.end <= y.start || y.end <= x.start,
+                    "{x:?} {y:?} share a colour"
+                );
+            }
+        }
+    }
+    assert_eq!(c.iter().map(Vec::len).sum::<usize>(), bins.len());
+    assert!(c.len() <= 3, "{c:?}");
+}
+
+#[test]
+fn sparse_dot_matches_dense() {
+    let a = [(1, 2.0), (3, 1.0), (7, -1.0)];
+    let b = [(0, 5.0), (3, 4.0), (7, 2.0), (9, 1.0)];
+    assert_eq!(solve::dot_sparse(&a, &b), 4.0 - 2.0);
+}
