@@ -112,8 +112,12 @@ CAM_CHECK = r"""
            units: [...document.querySelectorAll('svg.plot g.colour-bar text')].some((t) => t.textContent === 'error (µm)') };
 })()
 """
-# (view, compensation the demo machine gets, largest RMS after / RMS before)
-WANT_CAM = {"cam": ("volumetric + contour", 0.5), "cam-servo": ("contour", 0.5)}
+# (view, compensation the demo machine gets, largest RMS after / RMS before). 0.65 since the
+# contour pre-distortion of issue 39 (2026-12-01): it keeps feeds at or below F, arcs as arcs
+# and no dwells, and is judged over six machine models, so on the nominal model the demo
+# bracket now ends at 0.52x (volumetric + contour) and 0.59x (contour), where the unsafe
+# earlier answers reached below 0.5x; the view must still show a clear gain.
+WANT_CAM = {"cam": ("volumetric + contour", 0.65), "cam-servo": ("contour", 0.65)}
 
 # Text a view must show: the demo machine has no volumetric map, so its views say so instead
 # of asking for one (GET .../volumetric-map would be a 404); the machines table too.
