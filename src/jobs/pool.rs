@@ -87,6 +87,9 @@ pub(super) struct Inner {
     pub(super) lease: Duration,
     pub(super) claim_loop: Mutex<Option<JoinHandle<()>>>,
     pub(super) heartbeat: Mutex<Option<JoinHandle<()>>>,
+    /// Looks for gone instances every third of the lease, apart from the heartbeat: a
+    /// reaper waiting on a lock never delays a renewal.
+    pub(super) reaper: Mutex<Option<JoinHandle<()>>>,
     /// The periodic pruning of old jobs ([`JobPool::start_pruning`]).
     pub(super) pruner: Mutex<Option<JoinHandle<()>>>,
     /// Longest run of a piece of work in ms (`--job-timeout`); 0: no limit.
@@ -177,7 +180,7 @@ impl JobPool {
 
     /// Creates the pool, registers this instance with a lease of `lease` (renewed every
     /// third of it), and re-queues or fails the jobs of instances whose lease expired (now
-    /// and at every heartbeat). Stored jobs run once [`JobPool::serve`] gives the runners.
+    /// and every third of the lease, apart from the heartbeat). Stored jobs run once [`JobPool::serve`] gives the runners.
     pub async fn start_with_lease(
         store: Store,
         workers: usize,
@@ -201,14 +204,28 @@ impl JobPool {
                 tick.tick().await;
                 if let Err(e) = hb_store.heartbeat(lease_ms).await {
                     tracing::error!("heartbeat failed: {e:#}");
-                    continue;
                 }
-                match hb_store
-                    .reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED)
-                    .await
-                {
-                    Ok(r) => log_reaped("jobs of instances that are gone: re-queued or failed", r),
-                    Err(e) => tracing::error!("cannot look for gone instances: {e:#}"),
+            }
+        });
+        let reap_store = store.clone();
+        let reaper = tokio::spawn(async move {
+            let mut tick = tokio::time::interval(lease / 3);
+            tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+            tick.tick().await;
+            loop {
+                tick.tick().await;
+                // A fenced instance's own jobs are among those the reaper puts back.
+                let reap = reap_store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED);
+                match tokio::time::timeout(lease, reap).await {
+                    Ok(Ok(r)) => {
+                        log_reaped("jobs of instances that are gone: re-queued or failed", r)
+                    }
+                    Ok(Err(e)) => tracing::error!("cannot look for gone instances: {e:#}"),
+                    Err(_) => tracing::warn!(
+                        "looking for gone instances took longer than the lease ({} ms); \
+                         trying again at the next tick",
+                        lease.as_millis()
+                    ),
                 }
             }
         });
@@ -229,6 +246,7 @@ impl JobPool {
                 lease,
                 claim_loop: Mutex::new(None),
                 heartbeat: Mutex::new(Some(heartbeat)),
+                reaper: Mutex::new(Some(reaper)),
                 pruner: Mutex::new(None),
                 timeout_ms: AtomicU64::new(0),
             }),
@@ -579,14 +597,10 @@ impl JobPool {
             .store
             .release_own_jobs(MAX_ATTEMPTS, INTERRUPTED)
             .await?;
-        if let Some(t) = self
-            .inner
-            .heartbeat
-            .lock()
-            .unwrap_or_else(|p| p.into_inner())
-            .take()
-        {
-            t.abort();
+        for task in [&self.inner.heartbeat, &self.inner.reaper] {
+            if let Some(t) = task.lock().unwrap_or_else(|p| p.into_inner()).take() {
+                t.abort();
+            }
         }
         self.inner.store.deregister_instance().await?;
         Ok(cut.requeued + cut.failed)

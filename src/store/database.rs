@@ -34,6 +34,10 @@ pub struct Store {
     /// One connection for the lease alone (`instances.rs`): a busy request pool does not
     /// delay the heartbeat.
     pub(crate) hb_db: AnyPool,
+    /// One connection for the reaper alone (`instances.rs`): looking for gone instances
+    /// (which may wait on a lock of `jobs`) neither delays the heartbeat nor takes a
+    /// connection from the requests.
+    pub(crate) reap_db: AnyPool,
     pub(crate) lease: Arc<LeaseState>,
     backend: Backend,
     data_dir: PathBuf,
@@ -245,6 +249,10 @@ impl Store {
             .connect(&url)
             .await
             .with_context(|| format!("cannot connect to the database ({})", redact(&url)))?;
+        let reap_db = pool_options(backend, 1, Duration::from_secs(5))
+            .connect(&url)
+            .await
+            .with_context(|| format!("cannot connect to the database ({})", redact(&url)))?;
         migrator(backend)
             .run(&db)
             .await
@@ -269,6 +277,7 @@ impl Store {
         Ok(Store {
             db,
             hb_db,
+            reap_db,
             lease: Arc::new(LeaseState::default()),
             backend,
             data_dir: data_dir.to_path_buf(),
@@ -359,6 +368,7 @@ impl Store {
     pub async fn close(&self) {
         self.db.close().await;
         self.hb_db.close().await;
+        self.reap_db.close().await;
     }
 }
 

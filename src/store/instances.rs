@@ -9,7 +9,8 @@
 //!
 //! The lease is renewed on a connection of its own (a one-connection pool beside the
 //! request pool), within a third of the lease: a request pool exhausted by slow queries does
-//! not starve the heartbeat. A renewal only extends a lease that has not expired. An instance
+//! not starve the heartbeat. The reaper runs in a task of its own, on a third connection
+//! and with a timeout, so a lock it waits on never delays a renewal. A renewal only extends a lease that has not expired. An instance
 //! whose lease lapsed fences itself ([`Store::fenced`]): it claims no job, its commits of
 //! job results are refused (the database checks the lease in the same statement), and
 //! `/healthz` and `/readyz` say so. Its jobs then go back to the queue like those of a
@@ -261,10 +262,14 @@ impl Store {
     /// or never registered: rows of earlier builds), and forgets those instances. A job with
     /// stored input and fewer than `max_attempts` claims goes back to `queued`; the others
     /// (in-process jobs, or out of attempts) end `failed` with `reason`.
+    ///
+    /// Runs on a connection of its own (never the request pool's nor the heartbeat's), so a
+    /// lock held on `jobs` or an exhausted request pool delays only this; callers bound it
+    /// with a timeout (dropping the future rolls the transaction back).
     pub async fn reap_dead_instances(&self, max_attempts: i64, reason: &str) -> Result<Reaped> {
         let now = self.now_sql();
         let live = format!("(SELECT id FROM instances WHERE heartbeat_at + lease_ms >= {now})");
-        let mut tx = self.db.begin().await?;
+        let mut tx = self.reap_db.begin().await?;
         let requeued = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
              updated_at = $1 WHERE state IN {OWNED} AND {HAS_INPUT} AND attempts < $2 \

@@ -11,7 +11,7 @@ use serde_json::Value;
 
 use crate::instances::{PgSchema, seed, segments, start, train, train_long};
 
-const FLAGS: [&str; 4] = ["--workers", "1", "--lease-s", "1"];
+const FLAGS: [&str; 4] = ["--workers", "1", "--lease-s", "2"];
 
 /// Runs `body` on SQLite, and on PostgreSQL (when `TRUECUT_TEST_PG` is set).
 macro_rules! on_both {

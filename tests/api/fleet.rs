@@ -172,6 +172,87 @@ async fn a_stalled_heartbeat_fences_the_instance_until_it_registers_again() {
     assert_eq!(done["instance"], id.as_str(), "{done}");
 }
 
+/// Issue 41 item 1: the lease never waits on the request pool or a lock. Another session
+/// holds `jobs` and `measurements` locked for 15 s while 12 list requests wait on the lock
+/// (the request pool has 10 connections): the heartbeat keeps renewing on its own
+/// connection, the reaper (on a third one, with a timeout) waits apart, and the running job
+/// is neither fenced nor re-queued: it ends `done` on its first attempt once the locks go.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn locks_and_an_exhausted_request_pool_leave_the_lease_held() {
+    let Some(app) = spawn_app_pg_with(|c| c.lease_s = 1.0).await else {
+        return;
+    };
+    seed_machine_and_surface(&app, "m", "s", 5, 5).await;
+    let r = app
+        .post_json(
+            "/v1/step-error/samples",
+            &json!({"surface": {"reference": 1},
+                    "plan": {"tool_radius_mm": 5.0, "lines": 3, "points_per_line": 8}}),
+        )
+        .await;
+    assert_eq!(r.status(), 200);
+    let segments = r.json::<Value>().await.unwrap()["segments"].clone();
+    let r = app
+        .post_json(
+            "/v1/machines/m/surfaces/s/step-error-model",
+            &json!({"tool_radius": 5.0, "segments": segments, "epochs": 400, "hidden": [8]}),
+        )
+        .await;
+    assert_eq!(r.status(), 202);
+    let job = r.json::<Value>().await.unwrap()["job"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    let t0 = Instant::now();
+    loop {
+        let (_, j) = json_of(&app, &format!("/v1/jobs/{job}")).await;
+        if j["state"] == "running" {
+            break;
+        }
+        assert_eq!(j["state"], "queued", "{j}");
+        assert!(t0.elapsed() < Duration::from_secs(20), "never claimed: {j}");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+
+    let url = app.config.database_url.clone().unwrap();
+    let mut conn = sqlx::postgres::PgConnection::connect(&url).await.unwrap();
+    conn.execute("BEGIN").await.unwrap();
+    conn.execute("LOCK TABLE jobs, measurements IN ACCESS EXCLUSIVE MODE")
+        .await
+        .unwrap();
+    let waiting: Vec<_> = (0..12)
+        .map(|_| {
+            let client = app.client.clone();
+            let url = app.url("/v1/machines/m/surfaces/s/measurements");
+            tokio::spawn(async move { client.get(url).send().await.map(|r| r.status().as_u16()) })
+        })
+        .collect();
+    let held_for = Duration::from_secs(15);
+    let t0 = Instant::now();
+    let mut polls = 0;
+    while t0.elapsed() < held_for {
+        tokio::time::sleep(Duration::from_millis(500)).await;
+        let (_, h) = json_of(&app, "/healthz").await;
+        assert_eq!(
+            h["lease"]["held"],
+            true,
+            "lease lost after {:.1} s with the locks held: {h}",
+            t0.elapsed().as_secs_f64()
+        );
+        polls += 1;
+    }
+    println!("lease held at all {polls} polls over {held_for:?} of locks and a full pool");
+    conn.execute("ROLLBACK").await.unwrap();
+    for w in waiting {
+        assert_eq!(w.await.unwrap().unwrap(), 200);
+    }
+    let done = app.wait_job(&job).await;
+    assert_eq!(done["state"], "done", "{done}");
+    assert_eq!(done["attempts"], 1, "the job was not taken back: {done}");
+    let (_, h) = json_of(&app, "/healthz").await;
+    assert_eq!(h["status"], "ok", "{h}");
+}
+
 /// A volumetric map saved the way releases before migration 0003 saved models on
 /// PostgreSQL (the file `models/m/machine/volumetric_map.tcm` in the data dir of the
 /// instance that trained it; the database recording version 1 without its bytes) is
