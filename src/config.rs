@@ -61,8 +61,9 @@ pub struct Config {
     #[arg(long, default_value = "64KiB", value_parser = parse_rate, env = "TRUECUT_MIN_BODY_RATE")]
     pub min_body_rate: u64,
 
-    /// Seconds that in-flight background jobs get to finish at shutdown before they are
-    /// recorded as failed.
+    /// Seconds that in-flight requests and background jobs get to finish at shutdown: then
+    /// requests still running are dropped, and jobs go back to the queue (or are recorded as
+    /// failed); the process ends a second later whatever is still computing.
     #[arg(long, default_value_t = 30, env = "TRUECUT_SHUTDOWN_GRACE_S")]
     pub shutdown_grace_s: u64,
 

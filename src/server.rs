@@ -149,11 +149,23 @@ impl Server {
         if let Some(tx) = self.shutdown.take() {
             let _ = tx.send(());
         }
-        (&mut self.handle)
-            .await
-            .context("server task failed")?
-            .context("server error")?;
-        let cut = self.state.jobs.shutdown(self.grace).await?;
+        // In-flight requests get the grace period; those still running after it are dropped
+        // (their work stops at its next should-stop check, `numeric::stop`).
+        let t0 = std::time::Instant::now();
+        match tokio::time::timeout(self.grace, &mut self.handle).await {
+            Ok(joined) => joined
+                .context("server task failed")?
+                .context("server error")?,
+            Err(_) => {
+                tracing::warn!(
+                    grace_s = self.grace.as_secs_f64(),
+                    "requests still running after the grace period were dropped"
+                );
+                self.handle.abort();
+            }
+        }
+        let left = self.grace.saturating_sub(t0.elapsed());
+        let cut = self.state.jobs.shutdown(left).await?;
         if cut > 0 {
             tracing::warn!(
                 cut,

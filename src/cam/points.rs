@@ -35,7 +35,10 @@ pub fn compensate_points(
     }
     let mut max_shift_mm: f64 = 0.0;
     let mut out = Vec::with_capacity(points.len());
-    for &p in points {
+    for (i, &p) in points.iter().enumerate() {
+        if i % 4096 == 0 {
+            crate::numeric::stop::check();
+        }
         let e = field.error_at(p);
         max_shift_mm = max_shift_mm.max(norm(e));
         out.push(sub(p, e));

@@ -114,6 +114,7 @@ pub fn compensate_program(
     let mut notes = Notes::default();
     let mut whole = WholeMoves::default();
     for (idx, raw) in raw_lines.iter().enumerate() {
+        crate::numeric::stop::check();
         let line = idx + 1;
         let info = em.begin(raw);
         let frame = frames.get(idx).filter(|f| f.line == line);

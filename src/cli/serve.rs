@@ -8,7 +8,7 @@ pub fn run(config: Config) -> anyhow::Result<()> {
     let runtime = tokio::runtime::Builder::new_multi_thread()
         .enable_all()
         .build()?;
-    runtime.block_on(async move {
+    let result = runtime.block_on(async move {
         let server = crate::server::start(&config).await?;
         if config.demo {
             let loaded = super::demo::load(&server.state().store).await?;
@@ -29,7 +29,10 @@ pub fn run(config: Config) -> anyhow::Result<()> {
         signal.await;
         tracing::info!("signal received, shutting down");
         server.stop().await
-    })
+    });
+    // Work that ignored its stop request must not hold the process past the grace.
+    runtime.shutdown_timeout(std::time::Duration::from_secs(1));
+    result
 }
 
 /// Installs SIGINT and SIGTERM handlers now; the returned future resolves on either.

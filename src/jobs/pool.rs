@@ -597,6 +597,11 @@ impl JobPool {
             .store
             .release_own_jobs(MAX_ATTEMPTS, INTERRUPTED)
             .await?;
+        // The work of the jobs that outlived the grace stops at its next should-stop check
+        // (their records were settled just above; a late write of theirs is fenced).
+        for p in self.lock_live().values() {
+            p.cancel();
+        }
         for task in [&self.inner.heartbeat, &self.inner.reaper] {
             if let Some(t) = task.lock().unwrap_or_else(|p| p.into_inner()).take() {
                 t.abort();

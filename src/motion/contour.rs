@@ -208,6 +208,9 @@ pub fn contour_error(
     let mut breaks: Vec<bool> = Vec::new();
     let mut next_corner = corners.iter().peekable();
     for (i, p) in cmd_pose.iter().enumerate() {
+        if i % 4096 == 0 {
+            crate::numeric::stop::check();
+        }
         // The path's corners (programmed junction points) go in as knots of their own, at
         // which the spline restarts.
         while let Some(c) = next_corner.next_if(|c| c.before_sample <= i) {

@@ -264,7 +264,7 @@ async fn a_250k_point_csv_upload_round_trips() {
 }
 
 /// Starts the real binary and returns (child, base URL) once it prints its address.
-fn start_binary(args: &[&str]) -> (std::process::Child, String) {
+pub(crate) fn start_binary(args: &[&str]) -> (std::process::Child, String) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_truecut"))
         .args(args)
         .env_remove("DATABASE_URL")

@@ -109,6 +109,7 @@ pub fn solve(
         // The Jacobian, one colour and parameter slot at a time.
         let mut jac: Vec<Column> = vec![(Vec::new(), 0.0); np];
         for colour in &cols {
+            crate::numeric::stop::check();
             for slot in 0..4 {
                 let members: Vec<usize> = colour
                     .iter()

@@ -178,6 +178,9 @@ impl StepErrorSolver {
         let mut it = segments.into_iter().enumerate().peekable();
         let mut out = Vec::with_capacity(it.size_hint().0);
         while let Some((i, first)) = it.next() {
+            if i % 256 < BATCH_LANES {
+                crate::numeric::stop::check();
+            }
             let m = first.1.len();
             let mut group = [first; BATCH_LANES];
             let mut n = 1;

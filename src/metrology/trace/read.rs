@@ -154,6 +154,9 @@ pub fn find_visits(trace: &PositioningTrace, opts: &TraceOptions) -> (Vec<Visit>
     let mut last_dir: Option<bool> = None;
     let mut start = 0;
     for k in 1..=c.len() {
+        if k % 65_536 == 0 {
+            crate::numeric::stop::check();
+        }
         if k < c.len() && still(k) {
             continue;
         }

@@ -135,6 +135,9 @@ pub fn settled_runs(
     let mut runs = Vec::new();
     let mut k = h;
     while k < n - h {
+        if k % 65_536 == 0 {
+            crate::numeric::stop::check();
+        }
         if !still(k) {
             k += 1;
             continue;

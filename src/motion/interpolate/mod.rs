@@ -274,6 +274,7 @@ pub fn interpolate_with(
     let mut blocks: Vec<Block> = Vec::with_capacity(program.blocks.len());
     let mut q_cur = [0.0f64; 5];
     for b in &program.blocks {
+        crate::numeric::stop::check();
         let mut b = b.clone();
         let q0 = axes_at(kin, &b, 0.0);
         if (0..n_axes).any(|i| (q0[i] - q_cur[i]).abs() > 1e-9) {
@@ -302,6 +303,7 @@ pub fn interpolate_with(
     // Planning segments; dwells carry None, zero-length moves (possible after re-basing) go.
     let mut items: Vec<(&Block, Option<Seg>)> = Vec::with_capacity(blocks.len());
     for b in &blocks {
+        crate::numeric::stop::check();
         if matches!(b.motion, Motion::Dwell { .. }) {
             items.push((b, None));
             continue;
