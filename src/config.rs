@@ -32,6 +32,12 @@ pub struct Config {
     #[arg(long, env = "TRUECUT_TOKENS")]
     pub tokens: Option<String>,
 
+    /// POST requests (computations) each read token may have in flight at once; more answer
+    /// 429 with Retry-After. Write and admin tokens are bounded by the worker pool only.
+    #[arg(long, default_value_t = 1, env = "TRUECUT_READ_TOKEN_CONCURRENCY",
+          value_parser = clap::value_parser!(u16).range(1..=1024))]
+    pub read_token_concurrency: u16,
+
     /// Load a demo machine `demo` with surface `saddle` and a probe measurement `demo-1`
     /// (only if machine `demo` does not exist yet).
     #[arg(long)]
@@ -201,6 +207,7 @@ impl Config {
             data_dir,
             database_url: None,
             tokens: None,
+            read_token_concurrency: 1,
             demo: false,
             workers: None,
             queue: 32,

@@ -26,7 +26,9 @@ pub struct Server {
 /// without tokens only a loopback address may be bound.
 pub fn load_tokens(config: &Config) -> Result<Tokens> {
     let tokens = match &config.tokens {
-        Some(spec) => Tokens::load(spec)?,
+        Some(spec) => {
+            Tokens::load(spec)?.with_read_limit(usize::from(config.read_token_concurrency))
+        }
         None => Tokens::default(),
     };
     if tokens.is_empty() && !config.addr.ip().is_loopback() {

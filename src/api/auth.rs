@@ -9,7 +9,7 @@
 //! `admin` (development mode; the server then binds loopback only).
 
 use std::collections::HashMap;
-use std::sync::Arc;
+use std::sync::{Arc, Mutex};
 
 use axum::extract::{FromRequestParts, Request, State};
 use axum::http::request::Parts;
@@ -57,6 +57,30 @@ impl Role {
 #[derive(Clone, Debug, Default)]
 pub struct Tokens {
     by_digest: HashMap<[u8; 32], Role>,
+    /// POSTs each read token may have in flight at once (`--read-token-concurrency`; 0 until
+    /// set: no limit).
+    read_limit: usize,
+    /// POSTs in flight per read token.
+    in_flight: Arc<Mutex<HashMap<[u8; 32], usize>>>,
+}
+
+/// A read token's place among its POSTs in flight; given back when dropped (the request
+/// answered, or its client went away).
+pub struct ReadSlot {
+    key: [u8; 32],
+    in_flight: Arc<Mutex<HashMap<[u8; 32], usize>>>,
+}
+
+impl Drop for ReadSlot {
+    fn drop(&mut self) {
+        let mut m = self.in_flight.lock().unwrap_or_else(|p| p.into_inner());
+        if let Some(n) = m.get_mut(&self.key) {
+            *n -= 1;
+            if *n == 0 {
+                m.remove(&self.key);
+            }
+        }
+    }
 }
 
 fn digest(token: &str) -> [u8; 32] {
@@ -87,7 +111,33 @@ impl Tokens {
             };
             by_digest.insert(digest(token), role);
         }
-        Ok(Tokens { by_digest })
+        Ok(Tokens {
+            by_digest,
+            ..Tokens::default()
+        })
+    }
+
+    /// Bounds the POSTs (computations: compiles, simulations, diagnoses) each read token
+    /// may have in flight at once to `n` (≥ 1): a read token cannot fill the worker pool.
+    pub fn with_read_limit(mut self, n: usize) -> Tokens {
+        self.read_limit = n.max(1);
+        self
+    }
+
+    /// Takes a place for a POST of the read token `token`; `None` when it already has
+    /// [`Tokens::with_read_limit`] POSTs in flight.
+    fn read_slot(&self, token: &str) -> Option<ReadSlot> {
+        let key = digest(token);
+        let mut m = self.in_flight.lock().unwrap_or_else(|p| p.into_inner());
+        let n = m.entry(key).or_insert(0);
+        if self.read_limit > 0 && *n >= self.read_limit {
+            return None;
+        }
+        *n += 1;
+        Some(ReadSlot {
+            key,
+            in_flight: self.in_flight.clone(),
+        })
     }
 
     /// Loads tokens from `spec`: the path of an existing file, or inline entries.
@@ -178,6 +228,7 @@ pub async fn authenticate(State(state): State<AppState>, mut req: Request, next:
     if !path.starts_with("/v1") && !dashboard {
         return next.run(req).await;
     }
+    let mut presented = None;
     let role = if state.tokens.is_empty() {
         Role::Admin
     } else {
@@ -206,6 +257,7 @@ pub async fn authenticate(State(state): State<AppState>, mut req: Request, next:
             ))
             .into_response();
         }
+        presented = Some(token);
         role
     };
     let needed = match *req.method() {
@@ -233,7 +285,35 @@ pub async fn authenticate(State(state): State<AppState>, mut req: Request, next:
         return forbidden(role, needed).into_response();
     }
     req.extensions_mut().insert(role);
+    // A read token's POSTs are computations it does not store: bounded per token, so one
+    // read token cannot hold every worker.
+    let _slot = match presented {
+        Some(token) if role == Role::Read && req.method() == Method::POST => {
+            match state.tokens.read_slot(&token) {
+                Some(slot) => Some(slot),
+                None => return too_many(state.tokens.read_limit),
+            }
+        }
+        _ => None,
+    };
     next.run(req).await
+}
+
+/// 429 with `Retry-After: 1` for a read token already at its limit of POSTs in flight.
+fn too_many(limit: usize) -> Response {
+    let mut resp = super::error::problem_response(
+        axum::http::StatusCode::TOO_MANY_REQUESTS,
+        &format!(
+            "this read token already has {limit} computation(s) running (the server's \
+             --read-token-concurrency); wait for an answer before sending the next, or use a \
+             write token"
+        ),
+    );
+    resp.headers_mut().insert(
+        header::RETRY_AFTER,
+        axum::http::HeaderValue::from_static("1"),
+    );
+    resp
 }
 
 /// True when the request asks to be answered by a job (`Prefer: respond-async`, RFC 7240).

@@ -154,6 +154,7 @@ fn slug(status: StatusCode) -> &'static str {
         413 => "payload-too-large",
         415 => "unsupported-media-type",
         422 => "unprocessable",
+        429 => "too-many-requests",
         503 => "unavailable",
         507 => "insufficient-storage",
         _ => "internal",

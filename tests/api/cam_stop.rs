@@ -207,3 +207,68 @@ async fn sigterm_ends_the_process_within_its_grace_during_a_compilation() {
     assert!(took < Duration::from_secs(4), "exited after {took:?}");
     waiting.abort();
 }
+
+/// A read token holds at most `--read-token-concurrency` (default 1) computations at once:
+/// a second POST of the same read token answers 429 with Retry-After while its first
+/// compile runs; a write token is not held back, and once the first request is gone (its
+/// client gave up) the read token computes again.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn a_read_token_holds_one_computation_at_a_time() {
+    let app = spawn_app_with(|c| c.tokens = Some("r-tok read, w-tok write, a-tok admin".into())).await;
+    let cascade = json!({"kv": 40.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+    let def = json!({"name": "cascade", "kinematics": "xyz",
+        "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
+    let r = app
+        .client
+        .put(app.url("/v1/machines/m"))
+        .bearer_auth("a-tok")
+        .json(&def)
+        .send()
+        .await
+        .unwrap();
+    let st = r.status();
+    assert!(st.is_success(), "{st}: {}", r.text().await.unwrap());
+    let post = |token: &'static str, body: Value| {
+        app.client
+            .post(app.url(PROGRAM))
+            .bearer_auth(token)
+            .json(&body)
+    };
+    let first = tokio::spawn(
+        post("r-tok", long_compile())
+            .timeout(Duration::from_secs(3))
+            .send(),
+    );
+    wait_running(&app, 1).await;
+    let small = json!({"gcode": "G1 X5 F600\nG1 X10", "contour": true, "volumetric": false});
+    let r = post("r-tok", small.clone()).send().await.unwrap();
+    assert_eq!(r.status(), 429);
+    assert_eq!(r.headers()["retry-after"], "1");
+    let body: Value = r.json().await.unwrap();
+    assert!(
+        body["detail"]
+            .as_str()
+            .unwrap()
+            .contains("--read-token-concurrency"),
+        "{body}"
+    );
+    assert_eq!(
+        post("w-tok", small.clone()).send().await.unwrap().status(),
+        200
+    );
+    assert!(
+        first.await.unwrap().is_err(),
+        "the long compile answered within 3 s"
+    );
+    // The server sees the client gone within milliseconds; then the token's place is free.
+    let t0 = Instant::now();
+    loop {
+        let st = post("r-tok", small.clone()).send().await.unwrap().status();
+        if st == 200 {
+            break;
+        }
+        assert_eq!(st, 429);
+        assert!(t0.elapsed() < Duration::from_secs(2), "the place stayed taken");
+        tokio::time::sleep(Duration::from_millis(20)).await;
+    }
+}
