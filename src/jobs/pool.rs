@@ -160,6 +160,57 @@ impl Drop for Count<'_> {
 pub const INTERRUPTED: &str = "interrupted: the instance running it stopped (shutdown or crash) \
      before this job finished; submit it again";
 
+/// Every third of the lease, apart from the heartbeat and on the reaper's own connection
+/// (each pass bounded by the lease): re-queues or fails the jobs of gone instances, then the
+/// orphans of this one (jobs recorded as ours that no worker of ours runs, untouched for a
+/// lease). Ends when the pool is gone.
+async fn reaper_loop(pool: std::sync::Weak<Inner>, lease: Duration) {
+    let lease_ms = i64::try_from(lease.as_millis()).unwrap_or(i64::MAX);
+    let mut tick = tokio::time::interval(lease / 3);
+    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
+    tick.tick().await;
+    loop {
+        tick.tick().await;
+        let Some(inner) = pool.upgrade() else {
+            return;
+        };
+        let store = inner.store.clone();
+        let pass = async {
+            // A fenced instance's own jobs are among those put back here.
+            let gone = store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED).await?;
+            log_reaped("jobs of instances that are gone: re-queued or failed", gone);
+            let live: Vec<String> = inner
+                .live
+                .lock()
+                .unwrap_or_else(|p| p.into_inner())
+                .keys()
+                .cloned()
+                .collect();
+            let orphans = store
+                .release_orphans(&live, lease_ms, MAX_ATTEMPTS, ORPHANED)
+                .await?;
+            log_reaped(
+                "jobs recorded as this instance's that none of its workers runs: re-queued or failed",
+                orphans,
+            );
+            anyhow::Ok(())
+        };
+        match tokio::time::timeout(lease, pass).await {
+            Ok(Ok(())) => {}
+            Ok(Err(e)) => tracing::error!("cannot look for gone instances or orphaned jobs: {e:#}"),
+            Err(_) => tracing::warn!(
+                "looking for gone instances took longer than the lease ({} ms); trying again \
+                 at the next tick",
+                lease.as_millis()
+            ),
+        }
+    }
+}
+
+/// Error of a job whose worker ended without its outcome recorded ([`reaper_loop`]).
+pub const ORPHANED: &str = "interrupted: its worker ended but its outcome could not be \
+     recorded; send it again";
+
 fn log_reaped(what: &str, r: Reaped) {
     if r.requeued > 0 || r.failed > 0 {
         tracing::warn!(
@@ -207,50 +258,29 @@ impl JobPool {
                 }
             }
         });
-        let reap_store = store.clone();
-        let reaper = tokio::spawn(async move {
-            let mut tick = tokio::time::interval(lease / 3);
-            tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-            tick.tick().await;
-            loop {
-                tick.tick().await;
-                // A fenced instance's own jobs are among those the reaper puts back.
-                let reap = reap_store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED);
-                match tokio::time::timeout(lease, reap).await {
-                    Ok(Ok(r)) => {
-                        log_reaped("jobs of instances that are gone: re-queued or failed", r)
-                    }
-                    Ok(Err(e)) => tracing::error!("cannot look for gone instances: {e:#}"),
-                    Err(_) => tracing::warn!(
-                        "looking for gone instances took longer than the lease ({} ms); \
-                         trying again at the next tick",
-                        lease.as_millis()
-                    ),
-                }
-            }
+        let inner = Arc::new(Inner {
+            store,
+            workers: Arc::new(Semaphore::new(workers)),
+            admission: Arc::new(Semaphore::new(workers + queue)),
+            worker_count: workers,
+            queued: AtomicUsize::new(0),
+            running: AtomicUsize::new(0),
+            rejected: AtomicU64::new(0),
+            live: Mutex::new(HashMap::new()),
+            idle: Notify::new(),
+            work: Notify::new(),
+            runners: Mutex::new(None),
+            queue,
+            lease,
+            claim_loop: Mutex::new(None),
+            heartbeat: Mutex::new(Some(heartbeat)),
+            reaper: Mutex::new(None),
+            pruner: Mutex::new(None),
+            timeout_ms: AtomicU64::new(0),
         });
-        Ok(JobPool {
-            inner: Arc::new(Inner {
-                store,
-                workers: Arc::new(Semaphore::new(workers)),
-                admission: Arc::new(Semaphore::new(workers + queue)),
-                worker_count: workers,
-                queued: AtomicUsize::new(0),
-                running: AtomicUsize::new(0),
-                rejected: AtomicU64::new(0),
-                live: Mutex::new(HashMap::new()),
-                idle: Notify::new(),
-                work: Notify::new(),
-                runners: Mutex::new(None),
-                queue,
-                lease,
-                claim_loop: Mutex::new(None),
-                heartbeat: Mutex::new(Some(heartbeat)),
-                reaper: Mutex::new(Some(reaper)),
-                pruner: Mutex::new(None),
-                timeout_ms: AtomicU64::new(0),
-            }),
-        })
+        let reaper = tokio::spawn(reaper_loop(Arc::downgrade(&inner), lease));
+        *inner.reaper.lock().unwrap_or_else(|p| p.into_inner()) = Some(reaper);
+        Ok(JobPool { inner })
     }
 
     /// Starts taking stored jobs of the kinds in `runners` from the queue (shared by every

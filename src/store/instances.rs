@@ -341,4 +341,60 @@ impl Store {
             instances: 0,
         })
     }
+
+    /// Jobs the database says this instance runs (`running` or `storing`) but none of its
+    /// workers does (`live`: the ids its workers hold), untouched for `quiet_ms`: a worker
+    /// that ended without its outcome recorded (a final write refused by an error that is not
+    /// an outage, e.g. a read-only transaction right after a failover). They go back to the
+    /// queue (stored input, attempts left) or end `failed` with `reason`, so no job stays
+    /// `running` with no one working on it. On the reaper's connection.
+    pub async fn release_orphans(
+        &self,
+        live: &[String],
+        quiet_ms: i64,
+        max_attempts: i64,
+        reason: &str,
+    ) -> Result<Reaped> {
+        let marks: Vec<String> = (0..live.len()).map(|i| format!("${}", i + 4)).collect();
+        let not_live = if marks.is_empty() {
+            String::new()
+        } else {
+            format!(" AND id NOT IN ({})", marks.join(", "))
+        };
+        let now = super::database::now_ms();
+        let orphan = format!("owner = $2 AND state IN {OWNED} AND updated_at < $3{not_live}");
+        let mut tx = self.reap_db.begin().await?;
+        let sql = format!(
+            "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
+             updated_at = $1 WHERE {orphan} AND {HAS_INPUT} AND attempts < {max_attempts}"
+        );
+        let mut q = sqlx::query(AssertSqlSafe(sql))
+            .bind(now)
+            .bind(self.instance().to_string())
+            .bind(now - quiet_ms);
+        for id in live {
+            q = q.bind(id.clone());
+        }
+        let requeued = q.execute(&mut *tx).await?.rows_affected();
+        // $1 is the error here, the stamp goes last.
+        let stamp_mark = live.len() + 4;
+        let sql = format!(
+            "UPDATE jobs SET state = 'failed', error = $1, updated_at = ${stamp_mark}, \
+             finished_at = ${stamp_mark} WHERE {orphan}"
+        );
+        let mut q = sqlx::query(AssertSqlSafe(sql))
+            .bind(reason.to_string())
+            .bind(self.instance().to_string())
+            .bind(now - quiet_ms);
+        for id in live {
+            q = q.bind(id.clone());
+        }
+        let failed = q.bind(now).execute(&mut *tx).await?.rows_affected();
+        tx.commit().await?;
+        Ok(Reaped {
+            requeued,
+            failed,
+            instances: 0,
+        })
+    }
 }

@@ -214,7 +214,8 @@ async fn sigterm_ends_the_process_within_its_grace_during_a_compilation() {
 /// client gave up) the read token computes again.
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
 async fn a_read_token_holds_one_computation_at_a_time() {
-    let app = spawn_app_with(|c| c.tokens = Some("r-tok read, w-tok write, a-tok admin".into())).await;
+    let app =
+        spawn_app_with(|c| c.tokens = Some("r-tok read, w-tok write, a-tok admin".into())).await;
     let cascade = json!({"kv": 40.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
     let def = json!({"name": "cascade", "kinematics": "xyz",
         "axes": {"X": cascade, "Y": cascade, "Z": cascade}});
@@ -268,7 +269,10 @@ async fn a_read_token_holds_one_computation_at_a_time() {
             break;
         }
         assert_eq!(st, 429);
-        assert!(t0.elapsed() < Duration::from_secs(2), "the place stayed taken");
+        assert!(
+            t0.elapsed() < Duration::from_secs(2),
+            "the place stayed taken"
+        );
         tokio::time::sleep(Duration::from_millis(20)).await;
     }
 }

@@ -195,7 +195,7 @@ async fn locks_and_an_exhausted_request_pool_leave_the_lease_held() {
     let r = app
         .post_json(
             "/v1/machines/m/surfaces/s/step-error-model",
-            &json!({"tool_radius": 5.0, "segments": segments, "epochs": 400, "hidden": [8]}),
+            &json!({"tool_radius": 5.0, "segments": segments, "epochs": 3000, "preset": "paper"}),
         )
         .await;
     assert_eq!(r.status(), 202);
@@ -252,6 +252,64 @@ async fn locks_and_an_exhausted_request_pool_leave_the_lease_held() {
     let (_, h) = json_of(&app, "/healthz").await;
     assert_eq!(h["status"], "ok", "{h}");
 }
+
+/// Issue 41 item 5: no job stays `running` with no live owner working on it. Two jobs are
+/// recorded as this (live) instance's and running, but none of its workers runs them (as
+/// after a final write refused by an error that is not an outage): within a few leases the
+/// reaper puts the one with stored input back in the queue, where a worker runs it to
+/// `done`, and fails the in-process one with a sentence.
+async fn orphaned_jobs_of_a_live_instance_are_taken_back(app: TestApp) {
+    let store = app.server().state().store.clone();
+    let me = store.instance().to_string();
+    let stored_id = uuid::Uuid::now_v7().to_string();
+    let inproc_id = uuid::Uuid::now_v7().to_string();
+    let input = serde_json::to_string(
+        &json!({"signal": (0..512).map(|i| (i as f64 * 0.1).sin() * 1e-3).collect::<Vec<_>>()}),
+    )
+    .unwrap();
+    store
+        .insert_job(&stored_id, "decomposition", Some(&input))
+        .await
+        .unwrap();
+    store
+        .insert_job(&inproc_id, "compensated-program", None)
+        .await
+        .unwrap();
+    for id in [&stored_id, &inproc_id] {
+        sqlx::query(
+            "UPDATE jobs SET state = 'running', owner = $1, attempts = 1, updated_at = 0 \
+             WHERE id = $2",
+        )
+        .bind(me.clone())
+        .bind(id.clone())
+        .execute(store.pool())
+        .await
+        .unwrap();
+    }
+    let t0 = Instant::now();
+    let inproc = loop {
+        let (_, j) = json_of(&app, &format!("/v1/jobs/{inproc_id}")).await;
+        if j["state"] != "running" {
+            break j;
+        }
+        assert!(t0.elapsed() < Duration::from_secs(10), "still running: {j}");
+        tokio::time::sleep(Duration::from_millis(50)).await;
+    };
+    println!("orphans taken back after {:?} (lease 1 s)", t0.elapsed());
+    assert_eq!(inproc["state"], "failed", "{inproc}");
+    assert!(
+        inproc["error"]
+            .as_str()
+            .unwrap()
+            .contains("could not be recorded"),
+        "{inproc}"
+    );
+    let stored = app.wait_job(&stored_id).await;
+    assert_eq!(stored["state"], "done", "{stored}");
+}
+on_both_backends!(orphaned_jobs_of_a_live_instance_are_taken_back, |c| c
+    .lease_s =
+    1.0);
 
 /// A volumetric map saved the way releases before migration 0003 saved models on
 /// PostgreSQL (the file `models/m/machine/volumetric_map.tcm` in the data dir of the
