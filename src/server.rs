@@ -105,9 +105,9 @@ pub async fn start(config: &Config) -> Result<Server> {
     state
         .jobs
         .set_timeout(Some(config.job_timeout).filter(|t| !t.is_zero()));
-    if !config.job_retention.is_zero() {
-        state.jobs.start_pruning(config.job_retention);
-    }
+    state
+        .jobs
+        .start_pruning(Some(config.job_retention).filter(|r| !r.is_zero()));
     state.jobs.serve(api::jobs::runners(&state));
     let app = api::router(state.clone());
     let listener = tokio::net::TcpListener::bind(config.addr)

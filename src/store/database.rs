@@ -55,7 +55,7 @@ pub(crate) fn now_ms() -> i64 {
 }
 
 fn migrator(backend: Backend) -> Migrator {
-    let scripts: [(i64, &'static str, &'static str); 5] = match backend {
+    let scripts: [(i64, &'static str, &'static str); 6] = match backend {
         Backend::Sqlite => [
             (
                 1,
@@ -81,6 +81,11 @@ fn migrator(backend: Backend) -> Migrator {
                 5,
                 "job_inputs",
                 include_str!("../../migrations/sqlite/0005_job_inputs.sql"),
+            ),
+            (
+                6,
+                "idempotency",
+                include_str!("../../migrations/sqlite/0006_idempotency.sql"),
             ),
         ],
         Backend::Postgres => [
@@ -108,6 +113,11 @@ fn migrator(backend: Backend) -> Migrator {
                 5,
                 "job_inputs",
                 include_str!("../../migrations/postgres/0005_job_inputs.sql"),
+            ),
+            (
+                6,
+                "idempotency",
+                include_str!("../../migrations/postgres/0006_idempotency.sql"),
             ),
         ],
     };

@@ -20,6 +20,7 @@ mod faults;
 mod fleet;
 mod gap;
 mod hardening;
+mod idempotency;
 mod instances;
 mod iso230;
 mod iso230_comp;
