@@ -8,6 +8,7 @@
 #[macro_use]
 mod helpers;
 
+mod bounded;
 mod cli_client;
 mod cli_program;
 mod compensated;
