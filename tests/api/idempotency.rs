@@ -374,3 +374,41 @@ async fn keys_are_pruned(app: TestApp) {
     assert_eq!((again.0, again.1), (201, false));
 }
 on_both_backends!(keys_are_pruned);
+
+/// 20 rounds of 4 concurrent PUTs of a new machine, then of a new surface on it: one 201 and
+/// three 200 each, never 5xx (update-then-insert let the later inserts fail on PostgreSQL).
+async fn new_ids_put_race(app: TestApp) {
+    let mut tally: BTreeMap<(String, u16), usize> = BTreeMap::new();
+    for round in 0..20 {
+        for what in ["machine", "surface"] {
+            let path = match what {
+                "machine" => format!("/v1/machines/m{round}"),
+                _ => format!("/v1/machines/m{round}/surfaces/s"),
+            };
+            let sends = (0..4).map(|i| {
+                let mut body = match what {
+                    "machine" => crate::helpers::machine_xyz(),
+                    _ => crate::helpers::flat_surface(4, 3),
+                };
+                body["name"] = json!(format!("writer {i}"));
+                let req = app.client.put(app.url(&path)).json(&body);
+                async move {
+                    let r = req.send().await.expect("request failed");
+                    (r.status().as_u16(), r.text().await.unwrap())
+                }
+            });
+            let answers = futures::future::join_all(sends).await;
+            for (status, text) in &answers {
+                *tally.entry((what.to_string(), *status)).or_default() += 1;
+                assert!(
+                    *status == 200 || *status == 201,
+                    "round {round} {what}: {status} {text}"
+                );
+            }
+            let created = answers.iter().filter(|a| a.0 == 201).count();
+            assert_eq!(created, 1, "round {round} {what}: {answers:?}");
+        }
+    }
+    eprintln!("20 x 4 PUTs of new ids: {tally:?}");
+}
+on_both_backends!(new_ids_put_race);
