@@ -412,3 +412,34 @@ async fn new_ids_put_race(app: TestApp) {
     eprintln!("20 x 4 PUTs of new ids: {tally:?}");
 }
 on_both_backends!(new_ids_put_race);
+
+/// Keys are scoped per token: one key sent with two tokens is two keys (two records); with
+/// one token a retry is a replay.
+async fn keys_are_scoped_per_token(mut app: TestApp) {
+    app.token = Some("a-tok".into());
+    seed_machine_and_surface(&app, "m", "s", 4, 3).await;
+    let body = json!({"deviations": devs(8)});
+    let mut ids = Vec::new();
+    for token in ["a-tok", "w-tok", "a-tok"] {
+        let r = app
+            .client
+            .post(app.url(UPLOADS))
+            .bearer_auth(token)
+            .header("idempotency-key", "shared")
+            .json(&body)
+            .send()
+            .await
+            .unwrap();
+        assert_eq!(r.status(), 201);
+        let replayed = r.headers().contains_key("idempotent-replayed");
+        let id = r.json::<Value>().await.unwrap()["id"].clone();
+        ids.push((token, replayed, id));
+    }
+    assert!(!ids[0].1 && !ids[1].1 && ids[2].1, "{ids:?}");
+    assert_ne!(ids[0].2, ids[1].2);
+    assert_eq!(ids[0].2, ids[2].2);
+    let list: Value = app.get(UPLOADS).await.json().await.unwrap();
+    assert_eq!(list["measurements"].as_array().unwrap().len(), 2, "{list}");
+}
+on_both_backends!(keys_are_scoped_per_token, |c| c.tokens =
+    Some("a-tok admin, w-tok write".into()));
