@@ -212,7 +212,15 @@ async fn run_holding(
         {
             Ok(true) => {}
             Ok(false) => tracing::warn!(key, "an idempotency key was taken over before its answer"),
-            Err(e) => tracing::error!("cannot keep the answer of an idempotency key: {e:#}"),
+            Err(e) => {
+                // The record is stored but its answer is not: let go of the key rather than
+                // leave it "in flight" (409) until it goes stale; a retry then runs anew (and
+                // an upload with an id is answered as a replay by its insert).
+                tracing::error!("cannot keep the answer of an idempotency key: {e:#}");
+                if let Err(e) = store.release_idempotency_key(&scope, &key, &claim).await {
+                    tracing::error!("cannot release an idempotency key: {e:#}");
+                }
+            }
         }
     }
     Response::from_parts(parts, Body::from(bytes))
