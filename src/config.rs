@@ -61,6 +61,13 @@ pub struct Config {
     #[arg(long, default_value_t = 30.0, env = "TRUECUT_BODY_TIMEOUT_S")]
     pub body_timeout_s: f64,
 
+    /// Seconds a connection may take to send a request's headers (the first request's, and
+    /// the next one's on a kept-alive connection) before it is closed without an answer: a
+    /// client that opens connections and never finishes their headers (slowloris) holds
+    /// each for at most this long. Between 0.5 and 600.
+    #[arg(long, default_value_t = DEFAULT_HEADER_TIMEOUT_S, env = "TRUECUT_HEADER_TIMEOUT_S")]
+    pub header_timeout_s: f64,
+
     /// Slowest average rate at which a body larger than 64 KiB may arrive, after a grace of
     /// 2 s: bytes per second, or a number with a unit `KiB`, `MiB` (per second), e.g. `64KiB`.
     /// A slower body is answered 408. `0`: no minimum (only --body-timeout-s applies).
@@ -116,6 +123,12 @@ pub struct Config {
     #[arg(long, default_value_t = DEFAULT_MAX_TANGENTIAL_MM, env = "TRUECUT_MAX_TANGENTIAL_MM")]
     pub max_tangential_mm: f64,
 }
+
+/// Default `--header-timeout-s`: 10 s.
+pub const DEFAULT_HEADER_TIMEOUT_S: f64 = 10.0;
+
+/// The accepted range of `--header-timeout-s`, seconds.
+pub const HEADER_TIMEOUT_RANGE_S: std::ops::RangeInclusive<f64> = 0.5..=600.0;
 
 /// Default `--job-retention`: 7 days.
 pub const DEFAULT_JOB_RETENTION: Duration = Duration::from_secs(7 * 24 * 3600);
@@ -213,6 +226,7 @@ impl Config {
             queue: 32,
             max_body_bytes: DEFAULT_MAX_BODY_BYTES,
             body_timeout_s: 30.0,
+            header_timeout_s: DEFAULT_HEADER_TIMEOUT_S,
             min_body_rate: DEFAULT_MIN_BODY_RATE,
             shutdown_grace_s: 30,
             lease_s: 10.0,

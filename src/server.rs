@@ -5,11 +5,17 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use anyhow::{Context, Result, bail};
-use tokio::sync::oneshot;
-use tokio::task::JoinHandle;
+use axum::Router;
+use hyper::body::Incoming;
+use hyper_util::rt::{TokioExecutor, TokioIo, TokioTimer};
+use hyper_util::server::conn::auto::Builder;
+use tokio::net::TcpListener;
+use tokio::sync::{oneshot, watch};
+use tokio::task::{JoinHandle, JoinSet};
+use tower::ServiceExt as _;
 
 use crate::api::{self, AppState, Tokens};
-use crate::config::Config;
+use crate::config::{Config, HEADER_TIMEOUT_RANGE_S};
 use crate::jobs::JobPool;
 use crate::store::Store;
 
@@ -56,6 +62,7 @@ pub async fn start(config: &Config) -> Result<Server> {
                 config.body_timeout_s
             )
         })?;
+    let header_timeout = header_timeout(config.header_timeout_s)?;
     let limits = api::ranges::Limits::from_config(config)?;
     let inflight = (config.max_inflight_body_mb as u64).saturating_mul(1024 * 1024);
     if inflight < config.max_body_bytes as u64 {
@@ -107,23 +114,19 @@ pub async fn start(config: &Config) -> Result<Server> {
     state
         .jobs
         .set_timeout(Some(config.job_timeout).filter(|t| !t.is_zero()));
-    if !config.job_retention.is_zero() {
-        state.jobs.start_pruning(config.job_retention);
-    }
+    state
+        .jobs
+        .start_pruning(Some(config.job_retention).filter(|r| !r.is_zero()));
     state.jobs.serve(api::jobs::runners(&state));
     let app = api::router(state.clone());
-    let listener = tokio::net::TcpListener::bind(config.addr)
+    let listener = TcpListener::bind(config.addr)
         .await
         .with_context(|| format!("cannot listen on {}", config.addr))?;
     let addr = listener.local_addr()?;
     let (tx, rx) = oneshot::channel::<()>();
-    let handle = tokio::spawn(async move {
-        axum::serve(listener, app)
-            .with_graceful_shutdown(async {
-                let _ = rx.await;
-            })
-            .await
-    });
+    let handle = tokio::spawn(serve(listener, app, header_timeout, async {
+        let _ = rx.await;
+    }));
     tracing::info!(%addr, backend = ?state.store.backend(), data_dir = %config.data_dir.display(), "truecut listening");
     Ok(Server {
         addr,
@@ -132,6 +135,100 @@ pub async fn start(config: &Config) -> Result<Server> {
         handle,
         grace: Duration::from_secs(config.shutdown_grace_s),
     })
+}
+
+/// `--header-timeout-s` as a duration; refused outside [`HEADER_TIMEOUT_RANGE_S`].
+pub fn header_timeout(seconds: f64) -> Result<Duration> {
+    if !HEADER_TIMEOUT_RANGE_S.contains(&seconds) {
+        bail!(
+            "--header-timeout-s must be between {} and {} seconds, got {seconds}: it is how long \
+             a connection may take to send a request's headers before it is closed (default {})",
+            HEADER_TIMEOUT_RANGE_S.start(),
+            HEADER_TIMEOUT_RANGE_S.end(),
+            crate::config::DEFAULT_HEADER_TIMEOUT_S
+        );
+    }
+    Ok(Duration::from_secs_f64(seconds))
+}
+
+/// Serves `app` on `listener` over HTTP/1 until `signal`, then stops accepting and waits for
+/// the open connections to finish their requests (graceful shutdown, as `axum::serve`), with
+/// hyper's header read timeout: a connection that has not sent a request's complete headers
+/// within `header_timeout` (a slowloris client, or an idle kept-alive connection) is closed.
+pub async fn serve(
+    listener: TcpListener,
+    app: Router,
+    header_timeout: Duration,
+    signal: impl Future<Output = ()> + Send + 'static,
+) -> std::io::Result<()> {
+    let (stop_tx, stop_rx) = watch::channel(false);
+    let mut signal = std::pin::pin!(signal);
+    let mut connections = JoinSet::new();
+    loop {
+        let stream = tokio::select! {
+            accepted = listener.accept() => match accepted {
+                Ok((stream, _peer)) => stream,
+                Err(e) => {
+                    // As axum::serve: out of descriptors or a connection reset before it was
+                    // accepted must not end the server; wait a moment on the former.
+                    if !is_connection_error(&e) {
+                        tracing::error!("cannot accept a connection: {e}");
+                        tokio::time::sleep(Duration::from_secs(1)).await;
+                    }
+                    continue;
+                }
+            },
+            () = &mut signal => break,
+        };
+        let app = app.clone();
+        let mut stop = stop_rx.clone();
+        connections.spawn(async move {
+            let service = hyper::service::service_fn(move |req: hyper::Request<Incoming>| {
+                app.clone().oneshot(req.map(axum::body::Body::new))
+            });
+            let mut builder = Builder::new(TokioExecutor::new());
+            builder
+                .http1()
+                .timer(TokioTimer::new())
+                .header_read_timeout(header_timeout);
+            let conn = builder.serve_connection_with_upgrades(TokioIo::new(stream), service);
+            let mut conn = std::pin::pin!(conn);
+            loop {
+                tokio::select! {
+                    result = conn.as_mut() => {
+                        if let Err(e) = result {
+                            tracing::trace!("connection ended: {e:#}");
+                        }
+                        break;
+                    }
+                    changed = stop.changed() => {
+                        conn.as_mut().graceful_shutdown();
+                        if changed.is_err() {
+                            // The server is gone: nothing more to wait for but the connection.
+                            let _ = conn.as_mut().await;
+                            break;
+                        }
+                    }
+                }
+            }
+        });
+        // Reap the connections that ended, so the set holds only open ones.
+        while connections.try_join_next().is_some() {}
+    }
+    drop(listener);
+    let _ = stop_tx.send(true);
+    while connections.join_next().await.is_some() {}
+    Ok(())
+}
+
+/// Accept errors that concern one connection only (as hyper and axum treat them).
+fn is_connection_error(e: &std::io::Error) -> bool {
+    matches!(
+        e.kind(),
+        std::io::ErrorKind::ConnectionRefused
+            | std::io::ErrorKind::ConnectionAborted
+            | std::io::ErrorKind::ConnectionReset
+    )
 }
 
 impl Server {

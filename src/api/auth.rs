@@ -181,7 +181,7 @@ fn is_dashboard(path: &str) -> bool {
 /// The token presented: `Bearer TOKEN`, or `Basic` with the token as the password (any user
 /// name), which is what a browser sends after its log-in prompt. `Err` for a header that is
 /// neither.
-fn presented_token(value: &str) -> Result<(String, bool), &'static str> {
+pub(super) fn presented_token(value: &str) -> Result<(String, bool), &'static str> {
     if let Some(t) = value
         .strip_prefix("Bearer ")
         .or_else(|| value.strip_prefix("bearer "))

@@ -21,7 +21,7 @@ use super::lookup::{
 use super::upload::{ProbeData, read_csv_upload, read_json_upload};
 use crate::api::id::{Id, PathIds};
 use crate::signal::flyers::{FlyerParams, suspects};
-use crate::store::Measurement;
+use crate::store::{Inserted, Measurement};
 
 /// Routes of this resource.
 pub fn routes() -> Router<AppState> {
@@ -92,7 +92,9 @@ async fn post_measurement(
             surf.nv
         )));
     }
-    refuse_taken(&state, &machine, &surface, &id).await?;
+    // A taken id is decided by the insert below, not by a look before it: uploads of one id
+    // that race store one record, and an upload that repeats the stored one (a retry whose
+    // answer was lost) is answered as the first was.
     let limits = state.limits;
     // One short blocking task (not a worker-pool slot: an upload is never turned away
     // because decompositions fill the pool): pairing, the flyer search, and the record.
@@ -118,8 +120,12 @@ async fn post_measurement(
     let warnings = flyer_warnings(&outliers, &m.deviations, nu);
     let (id, n, max_abs, mean_abs) = (m.id.clone(), m.deviations.len(), m.max_abs, m.mean_abs);
     // The arrays go into the record's BLOBs and are dropped before the write.
-    state.store.insert_measurement_owned(m).await?;
-    Ok((
+    let replayed = match state.store.insert_measurement_owned(m).await? {
+        Inserted::Created => false,
+        Inserted::Same => true,
+        Inserted::Different => return Err(taken(&surface, &id)),
+    };
+    let mut resp = (
         StatusCode::CREATED,
         [(
             header::LOCATION,
@@ -130,14 +136,33 @@ async fn post_measurement(
             "outliers": outliers, "warnings": warnings,
         })),
     )
-        .into_response())
+        .into_response();
+    if replayed {
+        // The same data under the same id: the first upload's answer, marked as a replay.
+        resp.headers_mut().insert(
+            super::idempotency::REPLAYED,
+            header::HeaderValue::from_static("true"),
+        );
+    }
+    Ok(resp)
 }
 
-/// 409 when measurement `id` is taken on the surface.
+/// The 409 of a measurement id that holds other data.
+fn taken(surface: &Id, id: &str) -> ApiError {
+    ApiError::conflict(format!(
+        "measurement '{id}' already exists on surface '{surface}' with other data; choose \
+         another id or DELETE it first"
+    ))
+}
+
+/// 409 when measurement `id` is taken on the surface (a CSV upload, whose id comes from the
+/// query, is refused before its body is read).
 async fn refuse_taken(state: &AppState, machine: &Id, surface: &Id, id: &Id) -> ApiResult<()> {
     if state.store.measurement_exists(machine, surface, id).await? {
         return Err(ApiError::conflict(format!(
-            "measurement '{id}' already exists on surface '{surface}'; choose another id or DELETE it first"
+            "measurement '{id}' already exists on surface '{surface}'; choose another id or \
+             DELETE it first (a retry of a CSV upload is answered as the first only with an \
+             Idempotency-Key header)"
         )));
     }
     Ok(())

@@ -17,6 +17,7 @@ pub mod extract;
 pub mod gap;
 pub mod health;
 pub mod id;
+pub mod idempotency;
 pub mod intake;
 pub mod iso230;
 pub mod iso230_comp;
@@ -99,6 +100,12 @@ pub fn router(state: AppState) -> Router {
         // body is read, cheapest first (outermost): the declared size, the token and role,
         // the records the path names, room on the worker pool, room for the body.
         .layer(axum::middleware::from_fn(middleware::problem_json))
+        // Idempotency-Key: inside the pace and the budget, so a replay's body (read for its
+        // digest) is held to them like any other.
+        .layer(axum::middleware::from_fn_with_state(
+            state.clone(),
+            idempotency::idempotent,
+        ))
         // Room for the body (a chunked body takes room as it is read).
         .layer(axum::middleware::from_fn_with_state(
             state.clone(),

@@ -1,6 +1,6 @@
 //! The limits of the pool's work: the time limit of a job or a request's computation
 //! (`--job-timeout`) and the retention of ended jobs (`--job-retention`, pruned by a periodic
-//! task).
+//! task, which prunes the idempotency keys too).
 
 use std::sync::Arc;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -18,21 +18,34 @@ impl JobPool {
         self.inner.timeout_ms.store(ms, Ordering::Relaxed);
     }
 
-    /// Deletes the jobs that ended more than `retention` ago (`--job-retention`), now and
-    /// then every [`prune_interval`]`(retention)`, until shutdown. Any number of instances
-    /// may prune one database: the deletion is idempotent.
-    pub fn start_pruning(&self, retention: Duration) {
+    /// Deletes the jobs that ended more than `retention` ago (`--job-retention`; `None`: keep
+    /// them) and the idempotency keys older than [`crate::store::IDEMPOTENCY_KEEP`], now and
+    /// then every [`prune_interval`]`(retention)` (10 min without a retention), until
+    /// shutdown. Any number of instances may prune one database: the deletion is idempotent.
+    pub fn start_pruning(&self, retention: Option<Duration>) {
         let store = self.inner.store.clone();
-        let every = prune_interval(retention);
+        let every = retention.map_or(Duration::from_secs(600), prune_interval);
         let task = tokio::spawn(async move {
             let mut tick = tokio::time::interval(every);
             tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
             loop {
                 tick.tick().await;
-                match store.prune_jobs(retention).await {
+                if let Some(retention) = retention {
+                    match store.prune_jobs(retention).await {
+                        Ok(0) => {}
+                        Ok(n) => {
+                            tracing::info!(deleted = n, "pruned jobs older than --job-retention")
+                        }
+                        Err(e) => tracing::error!("cannot prune old jobs: {e:#}"),
+                    }
+                }
+                match store
+                    .prune_idempotency_keys(crate::store::IDEMPOTENCY_KEEP)
+                    .await
+                {
                     Ok(0) => {}
-                    Ok(n) => tracing::info!(deleted = n, "pruned jobs older than --job-retention"),
-                    Err(e) => tracing::error!("cannot prune old jobs: {e:#}"),
+                    Ok(n) => tracing::info!(deleted = n, "pruned idempotency keys older than 24 h"),
+                    Err(e) => tracing::error!("cannot prune idempotency keys: {e:#}"),
                 }
             }
         });

@@ -59,7 +59,7 @@ pub(crate) fn now_ms() -> i64 {
 }
 
 fn migrator(backend: Backend) -> Migrator {
-    let scripts: [(i64, &'static str, &'static str); 5] = match backend {
+    let scripts: [(i64, &'static str, &'static str); 6] = match backend {
         Backend::Sqlite => [
             (
                 1,
@@ -85,6 +85,11 @@ fn migrator(backend: Backend) -> Migrator {
                 5,
                 "job_inputs",
                 include_str!("../../migrations/sqlite/0005_job_inputs.sql"),
+            ),
+            (
+                6,
+                "idempotency",
+                include_str!("../../migrations/sqlite/0006_idempotency.sql"),
             ),
         ],
         Backend::Postgres => [
@@ -112,6 +117,11 @@ fn migrator(backend: Backend) -> Migrator {
                 5,
                 "job_inputs",
                 include_str!("../../migrations/postgres/0005_job_inputs.sql"),
+            ),
+            (
+                6,
+                "idempotency",
+                include_str!("../../migrations/postgres/0006_idempotency.sql"),
             ),
         ],
     };

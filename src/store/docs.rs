@@ -16,30 +16,33 @@ impl Store {
     ) -> Result<()> {
         let text = body.to_string();
         let now = now_ms();
+        // Insert first, update when the key is taken: two writes that race both succeed.
         let mut tx = self.db.begin().await?;
-        let updated = sqlx::query(
-            "UPDATE docs SET body = $1, updated_at = $2 WHERE machine = $3 AND kind = $4 AND key = $5",
+        let inserted = sqlx::query(
+            "INSERT INTO docs (machine, kind, key, body, updated_at) VALUES ($1, $2, $3, $4, $5) \
+             ON CONFLICT (machine, kind, key) DO NOTHING",
         )
-        .bind(text.clone())
-        .bind(now)
         .bind(machine.to_string())
         .bind(kind.to_string())
         .bind(key.to_string())
+        .bind(text.clone())
+        .bind(now)
         .execute(&mut *tx)
-        .await?
+        .await
+        .with_context(|| format!("cannot store document {kind}/{key} of machine {machine}"))?
         .rows_affected();
-        if updated == 0 {
+        if inserted == 0 {
             sqlx::query(
-                "INSERT INTO docs (machine, kind, key, body, updated_at) VALUES ($1, $2, $3, $4, $5)",
+                "UPDATE docs SET body = $1, updated_at = $2 \
+                 WHERE machine = $3 AND kind = $4 AND key = $5",
             )
+            .bind(text)
+            .bind(now)
             .bind(machine.to_string())
             .bind(kind.to_string())
             .bind(key.to_string())
-            .bind(text)
-            .bind(now)
             .execute(&mut *tx)
-            .await
-            .with_context(|| format!("cannot store document {kind}/{key} of machine {machine}"))?;
+            .await?;
         }
         tx.commit().await?;
         Ok(())

@@ -20,26 +20,29 @@ impl Store {
     pub async fn put_machine(&self, machine: &str, definition: &serde_json::Value) -> Result<bool> {
         let body = definition.to_string();
         let now = now_ms();
+        // Insert first, update when the id is taken: two PUTs of a new machine that race both
+        // succeed (one creates, the other replaces), where update-then-insert let the second
+        // insert fail on the taken key.
         let mut tx = self.db.begin().await?;
-        let updated =
+        let created = sqlx::query(
+            "INSERT INTO machines (id, definition, created_at, updated_at) VALUES ($1, $2, $3, $4) \
+             ON CONFLICT (id) DO NOTHING",
+        )
+        .bind(machine.to_string())
+        .bind(body.clone())
+        .bind(now)
+        .bind(now)
+        .execute(&mut *tx)
+        .await?
+        .rows_affected()
+            == 1;
+        if !created {
             sqlx::query("UPDATE machines SET definition = $1, updated_at = $2 WHERE id = $3")
-                .bind(body.clone())
+                .bind(body)
                 .bind(now)
                 .bind(machine.to_string())
                 .execute(&mut *tx)
-                .await?
-                .rows_affected();
-        let created = updated == 0;
-        if created {
-            sqlx::query(
-                "INSERT INTO machines (id, definition, created_at, updated_at) VALUES ($1, $2, $3, $4)",
-            )
-            .bind(machine.to_string())
-            .bind(body)
-            .bind(now)
-            .bind(now)
-            .execute(&mut *tx)
-            .await?;
+                .await?;
         }
         tx.commit().await?;
         Ok(created)

@@ -69,13 +69,26 @@ impl Measurement {
     }
 }
 
+/// What [`Store::insert_measurement`] did with a measurement whose id may be taken.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Inserted {
+    /// Stored: the id was free.
+    Created,
+    /// Not stored: the id holds a measurement with the same deviations and points (a retry).
+    Same,
+    /// Not stored: the id holds a measurement with other data.
+    Different,
+}
+
 /// BLOB bytes above which a measurement write waits for its turn (16 MiB: about 500,000
 /// points with their deviations).
 pub(crate) const LARGE_WRITE: usize = 16 << 20;
 
 impl Store {
-    /// Stores a new measurement (one row, arrays as BLOBs). Fails if the id exists.
-    pub async fn insert_measurement(&self, m: &Measurement) -> Result<()> {
+    /// Stores a new measurement (one row, arrays as BLOBs) unless its id is taken; then says
+    /// whether the stored one holds the same data. Concurrent inserts of one id store one row
+    /// and never fail for it (`INSERT ... ON CONFLICT DO NOTHING`).
+    pub async fn insert_measurement(&self, m: &Measurement) -> Result<Inserted> {
         self.insert_measurement_blobs(
             m,
             encode_f64s(&m.deviations),
@@ -90,7 +103,7 @@ impl Store {
     /// encoded only when their turn comes (the database writes one at a time anyway on
     /// SQLite; the driver and SQLite each copy the BLOBs of a bound statement while it waits
     /// for the database's lock).
-    pub async fn insert_measurement_owned(&self, mut m: Measurement) -> Result<()> {
+    pub async fn insert_measurement_owned(&self, mut m: Measurement) -> Result<Inserted> {
         let bytes = m.deviations.len() * 8 + m.points.as_ref().map_or(0, |p| p.len() * 24);
         let _turn = if bytes > LARGE_WRITE {
             Some(self.large_writes.lock().await)
@@ -107,15 +120,20 @@ impl Store {
         m: &Measurement,
         deviations: Vec<u8>,
         points: Option<Vec<u8>>,
-    ) -> Result<()> {
-        sqlx::query(
+    ) -> Result<Inserted> {
+        // The BLOBs move into the statement; their digest (a few ms for 16 MiB) is what a
+        // taken id is compared with.
+        let n = i64::try_from(deviations.len() / 8)?;
+        let digest = blob_digest(&deviations, points.as_deref());
+        let inserted = sqlx::query(
             "INSERT INTO measurements (machine, surface, id, n, max_abs, mean_abs, deviations, \
-             points, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9)",
+             points, created_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9) \
+             ON CONFLICT (machine, surface, id) DO NOTHING",
         )
         .bind(m.machine.clone())
         .bind(m.surface.clone())
         .bind(m.id.clone())
-        .bind(i64::try_from(deviations.len() / 8)?)
+        .bind(n)
         .bind(m.max_abs)
         .bind(m.mean_abs)
         .bind(deviations)
@@ -123,8 +141,35 @@ impl Store {
         .bind(now_ms())
         .execute(&self.db)
         .await
-        .context("cannot store the measurement")?;
-        Ok(())
+        .context("cannot store the measurement")?
+        .rows_affected();
+        if inserted == 1 {
+            return Ok(Inserted::Created);
+        }
+        // The id is taken (by a retry of this upload or by another one): compare the data.
+        let row = sqlx::query(
+            "SELECT deviations, points FROM measurements \
+             WHERE machine = $1 AND surface = $2 AND id = $3",
+        )
+        .bind(m.machine.clone())
+        .bind(m.surface.clone())
+        .bind(m.id.clone())
+        .fetch_optional(&self.db)
+        .await?;
+        let Some(row) = row else {
+            // Deleted in between: the id was taken when this insert ran, so it is a conflict
+            // the client may retry.
+            return Ok(Inserted::Different);
+        };
+        let stored: Vec<u8> = row.try_get(0)?;
+        let stored_points: Option<Vec<u8>> = row.try_get(1)?;
+        Ok(
+            if blob_digest(&stored, stored_points.as_deref()) == digest {
+                Inserted::Same
+            } else {
+                Inserted::Different
+            },
+        )
     }
 
     /// The measurement, or `None` if machine, surface or measurement does not exist.
@@ -222,4 +267,21 @@ impl Store {
         tx.commit().await?;
         Ok(n > 0)
     }
+}
+
+/// SHA-256 of a measurement's arrays as stored (deviations, then a marker and the points), so
+/// an insert that met a taken id compares without keeping a copy of its BLOBs.
+fn blob_digest(deviations: &[u8], points: Option<&[u8]>) -> [u8; 32] {
+    use sha2::{Digest, Sha256};
+    let mut h = Sha256::new();
+    h.update((deviations.len() as u64).to_le_bytes());
+    h.update(deviations);
+    match points {
+        Some(p) => {
+            h.update([1]);
+            h.update(p);
+        }
+        None => h.update([0]),
+    }
+    h.finalize().into()
 }

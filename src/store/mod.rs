@@ -11,6 +11,7 @@
 mod codec;
 mod database;
 mod docs;
+mod idempotency;
 mod instances;
 mod iso230;
 mod jobs;
@@ -26,11 +27,12 @@ mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
 pub use database::{Backend, DatabaseReport, PoolReport, Store};
+pub use idempotency::{Claim, IDEMPOTENCY_KEEP, IN_FLIGHT_STALE, KeptAnswer};
 pub use instances::{LeaseReport, Reaped};
 pub use iso230::Iso230Run;
 pub use jobs::{CancelOutcome, ClaimedJob, JobBytes, JobRecord};
 pub use machines::MachineSummary;
-pub use measurements::{Measurement, MeasurementSummary};
+pub use measurements::{Inserted, Measurement, MeasurementSummary};
 pub use model_versions::{ModelVersion, ModelVersions, Rollback};
 pub use models::{JobDone, MODEL_FORMAT_VERSION, ModelStore, VERSIONS_KEPT, is_valid_id};
 pub use outage::{DatabaseOutage, database_outage};

@@ -57,11 +57,16 @@ impl Store {
         let now = now_ms();
         let points = encode_points(&s.points);
         let normals = encode_points(&s.normals);
+        // Insert first, update when the id is taken: two PUTs of a new surface that race both
+        // succeed (one creates, the other replaces).
         let mut tx = self.db.begin().await?;
-        let updated = sqlx::query(
-            "UPDATE surfaces SET nu = $1, nv = $2, points = $3, normals = $4, tool_radius = $5, \
-             extra = $6, updated_at = $7 WHERE machine = $8 AND id = $9",
+        let created = sqlx::query(
+            "INSERT INTO surfaces (machine, id, nu, nv, points, normals, tool_radius, extra, \
+             created_at, updated_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10) \
+             ON CONFLICT (machine, id) DO NOTHING",
         )
+        .bind(s.machine.clone())
+        .bind(s.surface.clone())
         .bind(to_i64(s.nu))
         .bind(to_i64(s.nv))
         .bind(points.clone())
@@ -69,19 +74,16 @@ impl Store {
         .bind(s.tool_radius)
         .bind(extra.to_string())
         .bind(now)
-        .bind(s.machine.clone())
-        .bind(s.surface.clone())
+        .bind(now)
         .execute(&mut *tx)
         .await?
-        .rows_affected();
-        let created = updated == 0;
-        if created {
+        .rows_affected()
+            == 1;
+        if !created {
             sqlx::query(
-                "INSERT INTO surfaces (machine, id, nu, nv, points, normals, tool_radius, extra, \
-                 created_at, updated_at) VALUES ($1, $2, $3, $4, $5, $6, $7, $8, $9, $10)",
+                "UPDATE surfaces SET nu = $1, nv = $2, points = $3, normals = $4, \
+                 tool_radius = $5, extra = $6, updated_at = $7 WHERE machine = $8 AND id = $9",
             )
-            .bind(s.machine.clone())
-            .bind(s.surface.clone())
             .bind(to_i64(s.nu))
             .bind(to_i64(s.nv))
             .bind(points)
@@ -89,7 +91,8 @@ impl Store {
             .bind(s.tool_radius)
             .bind(extra.to_string())
             .bind(now)
-            .bind(now)
+            .bind(s.machine.clone())
+            .bind(s.surface.clone())
             .execute(&mut *tx)
             .await?;
         }

@@ -8,6 +8,7 @@
 #[macro_use]
 mod helpers;
 
+mod bounded;
 mod cam_stop;
 mod cli_client;
 mod cli_program;
@@ -21,6 +22,7 @@ mod faults;
 mod fleet;
 mod gap;
 mod hardening;
+mod idempotency;
 mod instances;
 mod iso230;
 mod iso230_comp;
