@@ -20,6 +20,7 @@
 //! dropped when it ends, and jobs older than `--job-retention` are deleted
 //! ([`JobPool::start_pruning`]).
 
+mod lease;
 mod limits;
 mod pool;
 mod progress;

@@ -9,11 +9,12 @@ use std::time::{Duration, Instant};
 use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
 use tokio::task::JoinHandle;
 
+use super::lease::{heartbeat_loop, log_reaped, reaper_loop};
 use super::limits::{SetOnDrop, sleep_or_forever};
 use super::progress::{Cancel, JobStatus, Progress};
 use super::worker::{claim_loop, finish, new_progress, persist, stoppable, watch_job};
 use crate::numeric;
-use crate::store::{CancelOutcome, Reaped, Store};
+use crate::store::{CancelOutcome, Store};
 use serde_json::Value;
 
 /// Runs one kind of stored job: reads the job's input (JSON text), reports progress and
@@ -160,68 +161,6 @@ impl Drop for Count<'_> {
 pub const INTERRUPTED: &str = "interrupted: the instance running it stopped (shutdown or crash) \
      before this job finished; submit it again";
 
-/// Every third of the lease, apart from the heartbeat and on the reaper's own connection
-/// (each pass bounded by the lease): re-queues or fails the jobs of gone instances, then the
-/// orphans of this one (jobs recorded as ours that no worker of ours runs, untouched for a
-/// lease). Ends when the pool is gone.
-async fn reaper_loop(pool: std::sync::Weak<Inner>, lease: Duration) {
-    let lease_ms = i64::try_from(lease.as_millis()).unwrap_or(i64::MAX);
-    let mut tick = tokio::time::interval(lease / 3);
-    tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-    tick.tick().await;
-    loop {
-        tick.tick().await;
-        let Some(inner) = pool.upgrade() else {
-            return;
-        };
-        let store = inner.store.clone();
-        let pass = async {
-            // A fenced instance's own jobs are among those put back here.
-            let gone = store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED).await?;
-            log_reaped("jobs of instances that are gone: re-queued or failed", gone);
-            let live: Vec<String> = inner
-                .live
-                .lock()
-                .unwrap_or_else(|p| p.into_inner())
-                .keys()
-                .cloned()
-                .collect();
-            let orphans = store
-                .release_orphans(&live, lease_ms, MAX_ATTEMPTS, ORPHANED)
-                .await?;
-            log_reaped(
-                "jobs recorded as this instance's that none of its workers runs: re-queued or failed",
-                orphans,
-            );
-            anyhow::Ok(())
-        };
-        match tokio::time::timeout(lease, pass).await {
-            Ok(Ok(())) => {}
-            Ok(Err(e)) => tracing::error!("cannot look for gone instances or orphaned jobs: {e:#}"),
-            Err(_) => tracing::warn!(
-                "looking for gone instances took longer than the lease ({} ms); trying again \
-                 at the next tick",
-                lease.as_millis()
-            ),
-        }
-    }
-}
-
-/// Error of a job whose worker ended without its outcome recorded ([`reaper_loop`]).
-pub const ORPHANED: &str = "interrupted: its worker ended but its outcome could not be \
-     recorded; send it again";
-
-fn log_reaped(what: &str, r: Reaped) {
-    if r.requeued > 0 || r.failed > 0 {
-        tracing::warn!(
-            requeued = r.requeued,
-            failed = r.failed,
-            instances = r.instances,
-            "{what}"
-        );
-    }
-}
-
 impl JobPool {
     /// Creates the pool (`workers` ≥ 1 running at once, `queue` more waiting) with the
     /// [`DEFAULT_LEASE`]; see [`JobPool::start_with_lease`].
@@ -246,18 +185,7 @@ impl JobPool {
             "jobs of instances that are gone: re-queued or failed",
             store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED).await?,
         );
-        let hb_store = store.clone();
-        let heartbeat = tokio::spawn(async move {
-            let mut tick = tokio::time::interval(lease / 3);
-            tick.set_missed_tick_behavior(tokio::time::MissedTickBehavior::Delay);
-            tick.tick().await;
-            loop {
-                tick.tick().await;
-                if let Err(e) = hb_store.heartbeat(lease_ms).await {
-                    tracing::error!("heartbeat failed: {e:#}");
-                }
-            }
-        });
+        let heartbeat = tokio::spawn(heartbeat_loop(store.clone(), lease));
         let inner = Arc::new(Inner {
             store,
             workers: Arc::new(Semaphore::new(workers)),
