@@ -6,7 +6,7 @@ use clap::Parser;
 /// Exit codes: 0 success, 2 usage (clap), the others as `truecut --help` lists them.
 fn main() -> std::process::ExitCode {
     let cli = truecut::cli::Cli::parse();
-    truecut::cli::init_tracing();
+    truecut::cli::init_tracing(cli.log_format);
     match truecut::cli::run(cli) {
         Ok(()) => std::process::ExitCode::SUCCESS,
         Err(e) => {

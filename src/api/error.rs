@@ -42,6 +42,10 @@ pub enum ApiError {
         /// Seconds the client should wait before retrying (the `Retry-After` header).
         retry_after_s: u64,
     },
+    /// 503: the database is out for now (a cut connection, a failover, no free connection);
+    /// `Retry-After: OUTAGE_RETRY_AFTER_S`. Counted apart from back-pressure in `/metrics`
+    /// (`truecut_database_outage_answers_total`).
+    DatabaseOutage(String),
     /// 507: the storage refused a write (full, read-only, forbidden); says what to free or fix.
     InsufficientStorage(String),
     /// 500: a bug or an infrastructure failure; the cause is logged, never shown.
@@ -113,7 +117,9 @@ impl ApiError {
             ApiError::PayloadTooLarge(_) => StatusCode::PAYLOAD_TOO_LARGE,
             ApiError::UnsupportedMediaType(_) => StatusCode::UNSUPPORTED_MEDIA_TYPE,
             ApiError::Unprocessable(_) => StatusCode::UNPROCESSABLE_ENTITY,
-            ApiError::Unavailable { .. } => StatusCode::SERVICE_UNAVAILABLE,
+            ApiError::Unavailable { .. } | ApiError::DatabaseOutage(_) => {
+                StatusCode::SERVICE_UNAVAILABLE
+            }
             ApiError::InsufficientStorage(_) => StatusCode::INSUFFICIENT_STORAGE,
             ApiError::Internal(_) => StatusCode::INTERNAL_SERVER_ERROR,
         }
@@ -132,6 +138,7 @@ impl ApiError {
             | ApiError::PayloadTooLarge(d)
             | ApiError::UnsupportedMediaType(d)
             | ApiError::Unprocessable(d)
+            | ApiError::DatabaseOutage(d)
             | ApiError::InsufficientStorage(d) => d,
             ApiError::Unavailable { detail, .. } => detail,
             ApiError::Internal(_) => {
@@ -219,6 +226,11 @@ impl IntoResponse for ApiError {
                 resp.headers_mut()
                     .insert(header::RETRY_AFTER, HeaderValue::from(*retry_after_s));
             }
+            ApiError::DatabaseOutage(_) => {
+                resp.headers_mut()
+                    .insert(header::RETRY_AFTER, HeaderValue::from(OUTAGE_RETRY_AFTER_S));
+                resp.extensions_mut().insert(OutageAnswer);
+            }
             ApiError::Unauthorized(_) => {
                 resp.headers_mut().insert(
                     header::WWW_AUTHENTICATE,
@@ -230,6 +242,10 @@ impl IntoResponse for ApiError {
         resp
     }
 }
+
+/// Marks a response that answered a database outage (for the metrics middleware).
+#[derive(Clone, Copy, Debug)]
+pub struct OutageAnswer;
 
 /// Seconds a client is told to wait (`Retry-After`) after a database outage: the pool opens
 /// a new connection on the next request, and a failover usually takes a few seconds.
@@ -248,7 +264,7 @@ impl From<anyhow::Error> for ApiError {
         }
         if let Some(outage) = crate::store::database_outage(&err) {
             tracing::warn!(cause = %format!("{err:#}"), "database outage: answered 503");
-            return ApiError::unavailable(outage.to_string(), OUTAGE_RETRY_AFTER_S);
+            return ApiError::DatabaseOutage(outage.to_string());
         }
         ApiError::Internal(format!("{err:#}"))
     }
@@ -477,5 +493,24 @@ impl From<metrology::Error> for ApiError {
             | E::CorrectionTooLarge { .. }
             | E::Unresolvable { .. } => ApiError::unprocessable(e.to_string()),
         }
+    }
+}
+
+#[cfg(test)]
+mod outage_tests {
+    use super::*;
+
+    #[test]
+    fn a_database_outage_is_503_with_retry_after_and_marked_for_the_metrics() {
+        let err = anyhow::Error::from(sqlx::Error::PoolTimedOut).context("cannot read the job");
+        let api = ApiError::from(err);
+        assert!(matches!(api, ApiError::DatabaseOutage(_)), "{api}");
+        let resp = api.into_response();
+        assert_eq!(resp.status(), StatusCode::SERVICE_UNAVAILABLE);
+        assert_eq!(resp.headers()[header::RETRY_AFTER], "1");
+        assert!(resp.extensions().get::<OutageAnswer>().is_some());
+        // Back-pressure 503s are not outages.
+        let full = ApiError::unavailable("all workers are busy", 2).into_response();
+        assert!(full.extensions().get::<OutageAnswer>().is_none());
     }
 }

@@ -33,18 +33,30 @@ pub const LIST_MAX: usize = 1000;
 /// of 1,000,000 samples).
 pub const LIST_MAX_WITH_RESULTS: usize = 100;
 
-/// The opaque cursor of the page after the job `(created_at ms, id)`: hex of `ms:id`.
-fn cursor(created_at_ms: i64, id: &str) -> String {
-    hex::encode(format!("{created_at_ms}:{id}"))
+/// The opaque cursor of the page after the job numbered `seq` (the database's insertion
+/// order, [`crate::store::JobRecord::seq`]): hex of `seq:<seq>`.
+fn cursor(seq: i64) -> String {
+    hex::encode(format!("seq:{seq}"))
 }
 
-/// Reads a cursor made by [`cursor`]; `None` for anything else.
-fn parse_cursor(s: &str) -> Option<(i64, String)> {
+/// What a cursor names: the page after a job's `seq`, or (a cursor of a release before
+/// migration 0007, hex of `created_at ms:id`) after the job `id`.
+#[derive(Debug, PartialEq)]
+enum Cursor {
+    Seq(i64),
+    Job(String),
+}
+
+/// Reads a cursor made by [`cursor`] or by an earlier release; `None` for anything else.
+fn parse_cursor(s: &str) -> Option<Cursor> {
     let bytes = hex::decode(s).ok()?;
     let text = String::from_utf8(bytes).ok()?;
-    let (ms, id) = text.split_once(':')?;
-    let ms = ms.parse::<i64>().ok()?;
-    (!id.is_empty() && id.len() <= 64).then(|| (ms, id.to_string()))
+    let (head, tail) = text.split_once(':')?;
+    if head == "seq" {
+        return tail.parse::<i64>().ok().map(Cursor::Seq);
+    }
+    head.parse::<i64>().ok()?;
+    (!tail.is_empty() && tail.len() <= 64).then(|| Cursor::Job(tail.to_string()))
 }
 
 const STATES: [&str; 5] = ["queued", "running", "done", "failed", "cancelled"];
@@ -97,14 +109,22 @@ async fn list_jobs(
             )));
         }
     };
+    let unknown = |c: &str| {
+        ApiError::bad_request(format!(
+            "cursor '{c}' is not one this service gave: pass the 'next' of the previous \
+             page as it was, or leave cursor out for the first page"
+        ))
+    };
     let after = match query.get("cursor") {
         None => None,
-        Some(c) => Some(parse_cursor(c).ok_or_else(|| {
-            ApiError::bad_request(format!(
-                "cursor '{c}' is not one this service gave: pass the 'next' of the previous \
-                 page as it was, or leave cursor out for the first page"
-            ))
-        })?),
+        Some(c) => match parse_cursor(c).ok_or_else(|| unknown(c))? {
+            Cursor::Seq(seq) => Some(seq),
+            // An earlier release's cursor names the page's last job: go on after it.
+            Cursor::Job(id) => {
+                let rec = state.store.get_job(&id).await?;
+                Some(rec.ok_or_else(|| unknown(c))?.seq)
+            }
+        },
     };
     let wanted = query.get("state").map(String::as_str);
     if let Some(s) = wanted {
@@ -135,13 +155,7 @@ async fn list_jobs(
     let kind = query.get("kind").map(String::as_str);
     let page = state
         .jobs
-        .list(
-            wanted,
-            kind,
-            limit,
-            after.as_ref().map(|(ms, id)| (*ms, id.as_str())),
-            with_result,
-        )
+        .list(wanted, kind, limit, after, with_result)
         .await?;
     let mut jobs = serde_json::to_value(&page.jobs).map_err(ApiError::internal)?;
     if !with_result && let Some(list) = jobs.as_array_mut() {
@@ -149,7 +163,7 @@ async fn list_jobs(
             job.remove("result");
         }
     }
-    let next = page.next.map(|(ms, id)| cursor(ms, &id));
+    let next = page.next.map(cursor);
     Ok(ApiJson(json!({ "jobs": jobs, "next": next })))
 }
 
@@ -176,5 +190,27 @@ async fn cancel_job(
             status.state
         ))),
         Cancel::Unknown => Err(ApiError::not_found(format!("job '{id}' does not exist"))),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn cursors_read_back_and_earlier_ones_name_their_job() {
+        assert_eq!(parse_cursor(&cursor(42)), Some(Cursor::Seq(42)));
+        // A cursor of a release before migration 0007: hex of `created_at ms:id`.
+        let old = hex::encode("1764800000000:job-7");
+        assert_eq!(parse_cursor(&old), Some(Cursor::Job("job-7".into())));
+        for bad in [
+            "",
+            "zz",
+            &hex::encode("seq:x"),
+            &hex::encode("12"),
+            &hex::encode("x:y"),
+        ] {
+            assert_eq!(parse_cursor(bad), None, "{bad}");
+        }
     }
 }

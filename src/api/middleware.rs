@@ -79,3 +79,18 @@ pub async fn problem_json(req: Request, next: Next) -> Response {
     }
     out
 }
+
+/// Middleware: serves the request inside [`crate::jobs::REQUEST_ID`] (its `X-Request-Id`,
+/// set by the request-id layer), so a job it queues records the id and the job's log lines
+/// name it.
+pub async fn scope_request_id(req: Request, next: Next) -> Response {
+    let id = req
+        .headers()
+        .get("x-request-id")
+        .and_then(|v| v.to_str().ok())
+        .map(str::to_string);
+    match id {
+        Some(id) => crate::jobs::REQUEST_ID.scope(id, next.run(req)).await,
+        None => next.run(req).await,
+    }
+}

@@ -28,6 +28,20 @@ pub struct Cli {
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
+    /// Log line format on stderr: `text` (for a terminal) or `json` (one JSON object a line,
+    /// for a log collector; spans such as a request's `request_id` and a job's `job` and
+    /// `kind` are fields of every line logged inside them).
+    #[arg(long, global = true, env = "TRUECUT_LOG_FORMAT", value_enum, default_value_t = LogFormat::Text)]
+    pub log_format: LogFormat,
+}
+
+/// How log lines are written ([`Cli::log_format`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+pub enum LogFormat {
+    /// Human-readable lines.
+    Text,
+    /// One JSON object a line.
+    Json,
 }
 
 /// The subcommands.
@@ -98,12 +112,21 @@ pub fn exit_code(err: &anyhow::Error) -> u8 {
     client::exit_code(err)
 }
 
-/// Logs to stderr; level from `RUST_LOG` (default `info`, sqlx at `warn`).
-pub fn init_tracing() {
+/// Logs to stderr in `format`; level from `RUST_LOG` (default `info`, sqlx at `warn`).
+pub fn init_tracing(format: LogFormat) {
     let filter = tracing_subscriber::EnvFilter::try_from_default_env()
         .unwrap_or_else(|_| tracing_subscriber::EnvFilter::new("info,sqlx=warn"));
-    let _ = tracing_subscriber::fmt()
+    let builder = tracing_subscriber::fmt()
         .with_env_filter(filter)
-        .with_writer(std::io::stderr)
-        .try_init();
+        .with_writer(std::io::stderr);
+    let _ = match format {
+        LogFormat::Text => builder.try_init(),
+        // Spans flattened into each line's fields: a job's line names its request.
+        LogFormat::Json => builder
+            .json()
+            .flatten_event(true)
+            .with_current_span(true)
+            .with_span_list(true)
+            .try_init(),
+    };
 }

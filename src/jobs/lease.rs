@@ -7,6 +7,7 @@ use std::sync::Weak;
 use std::time::Duration;
 
 use super::pool::{INTERRUPTED, Inner, MAX_ATTEMPTS};
+use super::stats::{JobStats, TakeBack};
 use crate::store::{Reaped, Store};
 
 /// Renews the lease every third of it ([`Store::heartbeat`]); failures are logged and
@@ -42,7 +43,12 @@ pub(super) async fn reaper_loop(pool: Weak<Inner>, lease: Duration) {
         let pass = async {
             // A fenced instance's own jobs are among those put back here.
             let gone = store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED).await?;
-            log_reaped("jobs of instances that are gone: re-queued or failed", gone);
+            log_reaped(
+                &inner.stats,
+                TakeBack::DeadInstance,
+                "jobs of instances that are gone: re-queued or failed",
+                gone,
+            );
             let live: Vec<String> = inner
                 .live
                 .lock()
@@ -50,10 +56,10 @@ pub(super) async fn reaper_loop(pool: Weak<Inner>, lease: Duration) {
                 .keys()
                 .cloned()
                 .collect();
-            let orphans = store
-                .release_orphans(&live, lease_ms, MAX_ATTEMPTS, ORPHANED)
-                .await?;
+            let orphans = store.release_orphans(&live, lease_ms, ORPHANED).await?;
             log_reaped(
+                &inner.stats,
+                TakeBack::Orphan,
                 "jobs recorded as this instance's that none of its workers runs: re-queued or failed",
                 orphans,
             );
@@ -75,7 +81,9 @@ pub(super) async fn reaper_loop(pool: Weak<Inner>, lease: Duration) {
 pub const ORPHANED: &str = "interrupted: its worker ended but its outcome could not be \
      recorded; send it again";
 
-pub(super) fn log_reaped(what: &str, r: Reaped) {
+/// Logs and counts (`/metrics`) jobs taken back for `why`.
+pub(super) fn log_reaped(stats: &JobStats, why: TakeBack, what: &str, r: Reaped) {
+    stats.taken_back(why, r.requeued, r.failed);
     if r.requeued > 0 || r.failed > 0 {
         tracing::warn!(
             requeued = r.requeued,

@@ -24,6 +24,7 @@ mod lease;
 mod limits;
 mod pool;
 mod progress;
+mod stats;
 mod worker;
 
 pub use limits::prune_interval;
@@ -32,3 +33,7 @@ pub use pool::{
     Runner,
 };
 pub use progress::{CANCEL_POLL, Cancel, Cancelled, JobStatus, Progress};
+pub use stats::{
+    JobStats, Outcome, REQUEST_ID, RUN_BUCKETS_S, RunTimes, StatsSnapshot, TakeBack,
+    current_request_id,
+};

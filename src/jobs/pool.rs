@@ -12,17 +12,24 @@ use tokio::task::JoinHandle;
 use super::lease::{heartbeat_loop, log_reaped, reaper_loop};
 use super::limits::{SetOnDrop, sleep_or_forever};
 use super::progress::{Cancel, JobStatus, Progress};
-use super::worker::{claim_loop, finish, new_progress, persist, stoppable, watch_job};
+use super::stats::{JobStats, StatsSnapshot, TakeBack, current_request_id};
+use super::worker::{
+    Ran, claim_loop, finish, job_span, new_progress, persist, stoppable, watch_job,
+};
 use crate::numeric;
 use crate::store::{CancelOutcome, Store};
 use serde_json::Value;
+use tracing::Instrument;
 
 /// Runs one kind of stored job: reads the job's input (JSON text), reports progress and
 /// returns the result JSON or an error sentence, like a [`JobPool::submit`] closure.
 pub type Runner = Arc<dyn Fn(&str, &Progress) -> Result<Value, String> + Send + Sync>;
 
-/// How many times a stored job is claimed before an interruption fails it instead of
-/// re-queueing it (a job that crashes its instance must not crash them all).
+/// How many counted claims a stored job may have before an interruption fails it instead
+/// of re-queueing it (a job that crashes its instance must not crash them all). Counted are
+/// the claims whose instance crashed (went without giving the job back) and the running
+/// one; claims given back through no fault of the job (outage, lost claim answer, graceful
+/// stop, orphan sweep) are not, and [`crate::store::MAX_CLAIMS`] bounds all claims.
 pub const MAX_ATTEMPTS: i64 = 3;
 
 /// Default lease of an instance: gone when its heartbeat (every third of this) is older.
@@ -95,6 +102,8 @@ pub(super) struct Inner {
     pub(super) pruner: Mutex<Option<JoinHandle<()>>>,
     /// Longest run of a piece of work in ms (`--job-timeout`); 0: no limit.
     pub(super) timeout_ms: AtomicU64,
+    /// What this instance's jobs came to (`/metrics`).
+    pub(super) stats: JobStats,
 }
 
 impl Inner {
@@ -120,9 +129,9 @@ impl Inner {
 pub struct JobPage {
     /// The jobs, newest first.
     pub jobs: Vec<JobStatus>,
-    /// Where the next page starts (`(created_at, id)` of this page's last job), when there
-    /// are more jobs.
-    pub next: Option<(i64, String)>,
+    /// Where the next page starts (the `seq` of this page's last job), when there are more
+    /// jobs.
+    pub next: Option<i64>,
 }
 
 /// The worker pool. Cheap to clone.
@@ -181,7 +190,10 @@ impl JobPool {
         let lease = lease.max(Duration::from_millis(300));
         let lease_ms = i64::try_from(lease.as_millis()).unwrap_or(i64::MAX);
         store.register_instance(lease_ms).await?;
+        let stats = JobStats::default();
         log_reaped(
+            &stats,
+            TakeBack::DeadInstance,
             "jobs of instances that are gone: re-queued or failed",
             store.reap_dead_instances(MAX_ATTEMPTS, INTERRUPTED).await?,
         );
@@ -205,6 +217,7 @@ impl JobPool {
             reaper: Mutex::new(None),
             pruner: Mutex::new(None),
             timeout_ms: AtomicU64::new(0),
+            stats,
         });
         let reaper = tokio::spawn(reaper_loop(Arc::downgrade(&inner), lease));
         *inner.reaper.lock().unwrap_or_else(|p| p.into_inner()) = Some(reaper);
@@ -267,7 +280,11 @@ impl JobPool {
             });
         }
         let id = uuid::Uuid::now_v7().to_string();
-        self.inner.store.insert_job(&id, kind, Some(&input)).await?;
+        let request_id = current_request_id();
+        self.inner
+            .store
+            .insert_job_for(&id, kind, Some(&input), request_id.as_deref())
+            .await?;
         self.inner.work.notify_one();
         Ok(id)
     }
@@ -376,51 +393,64 @@ impl JobPool {
     ) -> Result<String, Error> {
         let admitted = self.admit()?;
         let id = uuid::Uuid::now_v7().to_string();
-        self.inner.store.insert_job(&id, kind, None).await?;
+        let request_id = current_request_id();
+        self.inner
+            .store
+            .insert_job_for(&id, kind, None, request_id.as_deref())
+            .await?;
         let progress = new_progress(&self.inner, &id);
         self.lock_live().insert(id.clone(), progress.clone());
         self.inner.queued.fetch_add(1, Ordering::Relaxed);
         let inner = self.inner.clone();
         let job_id = id.clone();
-        tokio::spawn(async move {
-            let worker = inner.workers.clone().acquire_owned().await;
-            inner.queued.fetch_sub(1, Ordering::Relaxed);
-            let outcome = match worker {
-                Err(e) => Some(Err(format!("worker pool closed: {e}"))),
-                Ok(worker) => {
-                    let (store, job) = (&inner.store, job_id.as_str());
-                    // A start whose answer a cut connection lost shows as running here.
-                    let started =
-                        persist(store, "cannot mark the job running", move || async move {
-                            match store.start_job(job).await? {
-                                Some(epoch) => Ok(Some(epoch)),
-                                None => store.running_here(job).await,
+        let kind = kind.to_string();
+        let span = job_span(&id, &kind, request_id.as_deref());
+        tokio::spawn(
+            async move {
+                let mut ran = Ran::default();
+                let worker = inner.workers.clone().acquire_owned().await;
+                inner.queued.fetch_sub(1, Ordering::Relaxed);
+                let outcome = match worker {
+                    Err(e) => Some(Err(format!("worker pool closed: {e}"))),
+                    Ok(worker) => {
+                        let (store, job) = (&inner.store, job_id.as_str());
+                        // A start whose answer a cut connection lost shows as running here.
+                        let started =
+                            persist(store, "cannot mark the job running", move || async move {
+                                match store.start_job(job).await? {
+                                    Some(epoch) => Ok(Some(epoch)),
+                                    None => store.running_here(job).await,
+                                }
+                            })
+                            .await;
+                        match started {
+                            Ok(None) => None, // cancelled while queued: never runs
+                            Err(e) => {
+                                tracing::error!(job = %job_id, "cannot mark job running: {e:#}");
+                                Some(Err(format!("the job could not be started: {e:#}")))
                             }
-                        })
-                        .await;
-                    match started {
-                        Ok(None) => None, // cancelled while queued: never runs
-                        Err(e) => {
-                            tracing::error!(job = %job_id, "cannot mark job running: {e:#}");
-                            Some(Err(format!("the job could not be started: {e:#}")))
-                        }
-                        Ok(Some(epoch)) => {
-                            progress.set_epoch(epoch);
-                            let p = progress.clone();
-                            let inner2 = inner.clone();
-                            let limit = inner.timeout();
-                            let work = tokio::task::spawn_blocking(move || {
-                                let _permits = (admitted, worker);
-                                let _running = Count::up(&inner2.running);
-                                stoppable(&p, limit, |p| f(p))
-                            });
-                            Some(watch_job(&inner.store, &job_id, &progress, work, limit).await)
+                            Ok(Some(epoch)) => {
+                                progress.set_epoch(epoch);
+                                let p = progress.clone();
+                                let inner2 = inner.clone();
+                                let limit = inner.timeout();
+                                let span = tracing::Span::current();
+                                ran.start();
+                                let work = tokio::task::spawn_blocking(move || {
+                                    let _span = span.enter();
+                                    let _permits = (admitted, worker);
+                                    let _running = Count::up(&inner2.running);
+                                    stoppable(&p, limit, |p| f(p))
+                                });
+                                Some(watch_job(&inner.store, &job_id, &progress, work, limit).await)
+                            }
                         }
                     }
-                }
-            };
-            finish(&inner, &job_id, &progress, outcome).await;
-        });
+                };
+                finish(&inner, &job_id, &kind, ran, &progress, outcome).await;
+            }
+            .instrument(span),
+        );
         Ok(id)
     }
 
@@ -456,7 +486,7 @@ impl JobPool {
         state: Option<&str>,
         kind: Option<&str>,
         limit: usize,
-        after: Option<(i64, &str)>,
+        after: Option<i64>,
         with_result: bool,
     ) -> anyhow::Result<JobPage> {
         let mut recs = self
@@ -466,10 +496,7 @@ impl JobPool {
             .await?;
         let more = recs.len() > limit;
         recs.truncate(limit);
-        let next = recs
-            .last()
-            .filter(|_| more)
-            .map(|r| (r.created_at_ms, r.id.clone()));
+        let next = recs.last().filter(|_| more).map(|r| r.seq);
         let live = self.lock_live();
         let jobs = recs
             .into_iter()
@@ -507,6 +534,17 @@ impl JobPool {
     /// Requests and jobs turned away with 503 since start.
     pub fn rejected(&self) -> u64 {
         self.inner.rejected.load(Ordering::Relaxed)
+    }
+
+    /// What this instance's jobs came to since start: outcomes and run times by kind, jobs
+    /// taken back by reason.
+    pub fn stats(&self) -> StatsSnapshot {
+        self.inner.stats.snapshot()
+    }
+
+    /// The state of this instance's lease ([`Store::lease`]).
+    pub fn lease_report(&self) -> crate::store::LeaseReport {
+        self.inner.store.lease()
     }
 
     /// Number of worker slots.
@@ -550,11 +588,10 @@ impl JobPool {
             }
             let _ = tokio::time::timeout(left.min(Duration::from_millis(200)), notified).await;
         }
-        let cut = self
-            .inner
-            .store
-            .release_own_jobs(MAX_ATTEMPTS, INTERRUPTED)
-            .await?;
+        let cut = self.inner.store.release_own_jobs(INTERRUPTED).await?;
+        self.inner
+            .stats
+            .taken_back(TakeBack::Shutdown, cut.requeued, cut.failed);
         // The work of the jobs that outlived the grace stops at its next should-stop check
         // (their records were settled just above; a late write of theirs is fenced).
         for p in self.lock_live().values() {

@@ -200,9 +200,14 @@ pub struct JobStatus {
     pub finished_at: Option<String>,
     /// The instance running it or that ran it last (null while queued unclaimed).
     pub instance: Option<String>,
-    /// How many times an instance took it (more than 1: re-queued after its instance
-    /// stopped).
+    /// How many times an instance took it (more than 1: taken back and run again).
     pub attempts: i64,
+    /// The claims counted against the limit of [`super::MAX_ATTEMPTS`]: the crashes of
+    /// instances running it, plus the running claim. Claims given back through no fault of
+    /// the job (a database outage, a lost claim answer, a graceful stop) do not count.
+    pub counted_attempts: i64,
+    /// The X-Request-Id of the request that queued it (the `request_id` of its log lines).
+    pub request_id: Option<String>,
 }
 
 impl JobStatus {
@@ -229,6 +234,8 @@ impl JobStatus {
             finished_at: rec.finished_at_ms.and_then(rfc3339),
             instance: Some(rec.owner).filter(|o| !o.is_empty()),
             attempts: rec.attempts,
+            counted_attempts: rec.counted_attempts,
+            request_id: rec.request_id,
         }
     }
 }

@@ -20,7 +20,30 @@ use tokio::task::JoinHandle;
 use super::limits::sleep_or_forever;
 use super::pool::{CLAIM_POLL, Count, Inner};
 use super::progress::{CANCEL_POLL, Gate, Progress};
+use super::stats::{Outcome, TakeBack};
 use crate::store::{ClaimedJob, Store};
+use tracing::Instrument;
+
+/// The span of a job's run: every line logged inside it names the job, its kind and the
+/// request that queued it (`-` when none), on whichever instance runs it.
+pub(super) fn job_span(id: &str, kind: &str, request_id: Option<&str>) -> tracing::Span {
+    tracing::info_span!("job", job = %id, kind = %kind, request_id = %request_id.unwrap_or("-"))
+}
+
+/// When a job's work started on a worker (none: it never reached one), for its run time.
+#[derive(Clone, Copy, Debug, Default)]
+pub(super) struct Ran(Option<Instant>);
+
+impl Ran {
+    /// The work starts now.
+    pub(super) fn start(&mut self) {
+        self.0 = Some(Instant::now());
+    }
+
+    fn elapsed(self) -> Option<Duration> {
+        self.0.map(|t| t.elapsed())
+    }
+}
 
 /// A job's progress with its commit gate on this instance's store.
 pub(super) fn new_progress(inner: &Inner, id: &str) -> Arc<Progress> {
@@ -91,6 +114,8 @@ pub(super) fn stoppable(
 pub(super) async fn finish(
     inner: &Inner,
     id: &str,
+    kind: &str,
+    ran: Ran,
     progress: &Progress,
     mut outcome: Option<Result<Value, String>>,
 ) {
@@ -131,6 +156,17 @@ pub(super) async fn finish(
             .await
         }
     };
+    let counted = match (&outcome, &saved) {
+        _ if requeued => Outcome::Requeued,
+        (None, _) => Outcome::Cancelled,
+        (_, Ok(false) | Err(_)) => Outcome::NotStored,
+        (Some(Ok(_)), Ok(true)) => Outcome::Done,
+        (Some(Err(_)), Ok(true)) if progress.timed_out() => Outcome::TimedOut,
+        (Some(Err(_)), Ok(true)) => Outcome::Failed,
+    };
+    let run_s = ran.elapsed().map_or(0.0, |d| d.as_secs_f64());
+    tracing::info!(outcome = counted.label(), run_s, "job ended");
+    inner.stats.finished(kind, counted, ran.elapsed());
     if let Err(e) = saved {
         tracing::error!(job = %id, "cannot store job outcome: {e:#}");
     }
@@ -180,6 +216,7 @@ pub(super) async fn claim_loop(inner: Arc<Inner>) {
             match inner.store.release_lost_claims(&running).await {
                 Ok(n) => {
                     lost_claim = false;
+                    inner.stats.taken_back(TakeBack::LostClaim, n, 0);
                     if n > 0 {
                         tracing::warn!(jobs = n, "claims lost in transit: back in the queue");
                     }
@@ -213,7 +250,10 @@ pub(super) async fn claim_loop(inner: Arc<Inner>) {
                             return;
                         }
                     };
-                    tokio::spawn(run_claimed(inner.clone(), job, progress, permits));
+                    let span = job_span(&job.id, &job.kind, job.request_id.as_deref());
+                    tokio::spawn(
+                        run_claimed(inner.clone(), job, progress, permits).instrument(span),
+                    );
                     continue;
                 }
                 Ok(None) => {}
@@ -243,7 +283,11 @@ async fn run_claimed(
     let kind = job.kind.clone();
     let input = job.input;
     let limit = inner.timeout();
+    let span = tracing::Span::current();
+    let mut ran = Ran::default();
+    ran.start();
     let work = tokio::task::spawn_blocking(move || {
+        let _span = span.enter();
         let _permits = permits;
         let _running = Count::up(&inner2.running);
         match runner {
@@ -252,7 +296,7 @@ async fn run_claimed(
         }
     });
     let outcome = watch_job(&inner.store, &job.id, &progress, work, limit).await;
-    finish(&inner, &job.id, &progress, Some(outcome)).await;
+    finish(&inner, &job.id, &job.kind, ran, &progress, Some(outcome)).await;
 }
 
 /// Waits for a job's worker, storing its progress every [`CANCEL_POLL`] (so every instance

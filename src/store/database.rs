@@ -59,7 +59,7 @@ pub(crate) fn now_ms() -> i64 {
 }
 
 fn migrator(backend: Backend) -> Migrator {
-    let scripts: [(i64, &'static str, &'static str); 6] = match backend {
+    let scripts: [(i64, &'static str, &'static str); 7] = match backend {
         Backend::Sqlite => [
             (
                 1,
@@ -90,6 +90,11 @@ fn migrator(backend: Backend) -> Migrator {
                 6,
                 "idempotency",
                 include_str!("../../migrations/sqlite/0006_idempotency.sql"),
+            ),
+            (
+                7,
+                "job_claims_seq",
+                include_str!("../../migrations/sqlite/0007_job_claims_seq.sql"),
             ),
         ],
         Backend::Postgres => [
@@ -122,6 +127,11 @@ fn migrator(backend: Backend) -> Migrator {
                 6,
                 "idempotency",
                 include_str!("../../migrations/postgres/0006_idempotency.sql"),
+            ),
+            (
+                7,
+                "job_claims_seq",
+                include_str!("../../migrations/postgres/0007_job_claims_seq.sql"),
             ),
         ],
     };

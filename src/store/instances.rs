@@ -24,7 +24,7 @@ use serde::Serialize;
 use sqlx::AssertSqlSafe;
 
 use super::database::Store;
-use super::jobs::HAS_INPUT;
+use super::jobs::{GIVE_BACK, HAS_INPUT, MAX_CLAIMS};
 
 /// What this process knows of its own lease (shared by every clone of its [`Store`]).
 #[derive(Debug, Default)]
@@ -260,8 +260,9 @@ impl Store {
 
     /// Re-queues or fails the unfinished jobs of every instance that is gone (lease expired,
     /// or never registered: rows of earlier builds), and forgets those instances. A job with
-    /// stored input and fewer than `max_attempts` claims goes back to `queued`; the others
-    /// (in-process jobs, or out of attempts) end `failed` with `reason`.
+    /// stored input goes back to `queued` when fewer than `max_attempts` of its claims count
+    /// (this one does: its instance crashed; [`super::jobs::MAX_CLAIMS`] bounds them all);
+    /// the others (in-process jobs, or out of attempts) end `failed` with `reason`.
     ///
     /// Runs on a connection of its own (never the request pool's nor the heartbeat's), so a
     /// lock held on `jobs` or an exhausted request pool delays only this; callers bound it
@@ -272,8 +273,8 @@ impl Store {
         let mut tx = self.reap_db.begin().await?;
         let requeued = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
-             updated_at = $1 WHERE state IN {OWNED} AND {HAS_INPUT} AND attempts < $2 \
-             AND owner NOT IN {live}"
+             updated_at = $1 WHERE state IN {OWNED} AND {HAS_INPUT} \
+             AND attempts - free_claims < $2 AND attempts < {MAX_CLAIMS} AND owner NOT IN {live}"
         )))
         .bind(super::database::now_ms())
         .bind(max_attempts)
@@ -307,17 +308,16 @@ impl Store {
     }
 
     /// At a graceful stop: this instance's unfinished jobs that outlived the grace period go
-    /// back to the queue (stored input, attempts left) or end `failed` with `reason`.
-    pub async fn release_own_jobs(&self, max_attempts: i64, reason: &str) -> Result<Reaped> {
+    /// back to the queue (stored input, fewer than [`super::jobs::MAX_CLAIMS`] claims; the
+    /// stop is not counted against the attempt limit) or end `failed` with `reason`.
+    pub async fn release_own_jobs(&self, reason: &str) -> Result<Reaped> {
         let me = self.instance().to_string();
         let mut tx = self.db.begin().await?;
         let requeued = sqlx::query(AssertSqlSafe(format!(
-            "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
-             updated_at = $1 WHERE state IN {OWNED} AND {HAS_INPUT} AND attempts < $2 \
-             AND owner = $3"
+            "UPDATE jobs SET {GIVE_BACK}, updated_at = $1 WHERE state IN {OWNED} \
+             AND {HAS_INPUT} AND attempts < {MAX_CLAIMS} AND owner = $2"
         )))
         .bind(super::database::now_ms())
-        .bind(max_attempts)
         .bind(me.clone())
         .execute(&mut *tx)
         .await?
@@ -346,13 +346,13 @@ impl Store {
     /// workers does (`live`: the ids its workers hold), untouched for `quiet_ms`: a worker
     /// that ended without its outcome recorded (a final write refused by an error that is not
     /// an outage, e.g. a read-only transaction right after a failover). They go back to the
-    /// queue (stored input, attempts left) or end `failed` with `reason`, so no job stays
-    /// `running` with no one working on it. On the reaper's connection.
+    /// queue (stored input, fewer than [`super::jobs::MAX_CLAIMS`] claims; not counted
+    /// against the attempt limit) or end `failed` with `reason`, so no job stays `running`
+    /// with no one working on it. On the reaper's connection.
     pub async fn release_orphans(
         &self,
         live: &[String],
         quiet_ms: i64,
-        max_attempts: i64,
         reason: &str,
     ) -> Result<Reaped> {
         let marks: Vec<String> = (0..live.len()).map(|i| format!("${}", i + 4)).collect();
@@ -365,8 +365,8 @@ impl Store {
         let orphan = format!("owner = $2 AND state IN {OWNED} AND updated_at < $3{not_live}");
         let mut tx = self.reap_db.begin().await?;
         let sql = format!(
-            "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
-             updated_at = $1 WHERE {orphan} AND {HAS_INPUT} AND attempts < {max_attempts}"
+            "UPDATE jobs SET {GIVE_BACK}, updated_at = $1 WHERE {orphan} AND {HAS_INPUT} \
+             AND attempts < {MAX_CLAIMS}"
         );
         let mut q = sqlx::query(AssertSqlSafe(sql))
             .bind(now)

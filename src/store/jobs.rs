@@ -58,9 +58,18 @@ pub struct JobRecord {
     pub finished_at_ms: Option<i64>,
     /// The instance running it or that ran it last (empty while queued unclaimed).
     pub owner: String,
-    /// How many times an instance claimed it (more than 1: re-queued after its instance
-    /// stopped).
+    /// How many times an instance claimed it (more than 1: taken back and run again).
     pub attempts: i64,
+    /// The claims counted against the attempt limit ([`crate::jobs::MAX_ATTEMPTS`]): all
+    /// but those given back through no fault of the job (a database outage, a lost claim
+    /// answer, a graceful stop), so the crashes of instances running it plus the running
+    /// claim.
+    pub counted_attempts: i64,
+    /// Its place in the order jobs were recorded (numbered by the database; the job list's
+    /// cursor).
+    pub seq: i64,
+    /// The X-Request-Id of the request that queued it (none for jobs of earlier releases).
+    pub request_id: Option<String>,
 }
 
 /// A job taken from the queue by [`Store::claim_job`].
@@ -75,6 +84,8 @@ pub struct ClaimedJob {
     /// Which claim of the job this is (1 for the first): the epoch every later write by
     /// this worker carries, so a worker of an earlier claim can no longer write.
     pub attempts: i64,
+    /// The X-Request-Id of the request that queued it, for the run's log lines.
+    pub request_id: Option<String>,
 }
 
 /// What the jobs table holds ([`Store::job_bytes`]).
@@ -105,8 +116,20 @@ const UNFINISHED: &str = "('queued', 'running', 'storing')";
 /// The condition "the job has stored input" on a row of `jobs`.
 pub(super) const HAS_INPUT: &str = "id IN (SELECT id FROM job_inputs)";
 
+/// The claims a job may have in all, whatever ended them. Claims given back through no
+/// fault of the job do not count against the attempt limit (migrations/*/0007), so this
+/// bound alone stops a job that keeps meeting outages or stops from circulating for ever:
+/// past it, the job ends `failed` instead of going back to the queue.
+pub const MAX_CLAIMS: i64 = 20;
+
+/// `SET` clause giving a claim back to the queue through no fault of the job: it runs again
+/// (from the start) and the claim is not counted against the attempt limit.
+pub(super) const GIVE_BACK: &str = "state = 'queued', owner = '', progress = 0.0, \
+     started_at = NULL, free_claims = free_claims + 1";
+
 const COLUMNS: &str = "id, kind, state, progress, result, error, created_at, updated_at, \
-                       started_at, finished_at, owner, attempts";
+                       started_at, finished_at, owner, attempts, attempts - free_claims, seq, \
+                       request_id";
 
 fn record(row: &AnyRow) -> Result<JobRecord> {
     let result: Option<String> = row.try_get(4)?;
@@ -126,6 +149,9 @@ fn record(row: &AnyRow) -> Result<JobRecord> {
         finished_at_ms: row.try_get(9)?,
         owner: row.try_get(10)?,
         attempts: row.try_get(11)?,
+        counted_attempts: row.try_get(12)?,
+        seq: row.try_get(13)?,
+        request_id: row.try_get(14)?,
     })
 }
 
@@ -133,18 +159,36 @@ impl Store {
     /// Records a new queued job: with `input` (JSON text) any instance may claim it
     /// ([`Store::claim_job`]); without, it is this instance's in-process job.
     pub async fn insert_job(&self, id: &str, kind: &str, input: Option<&str>) -> Result<()> {
+        self.insert_job_for(id, kind, input, None).await
+    }
+
+    /// [`Store::insert_job`] for the request whose X-Request-Id is `request_id`.
+    pub async fn insert_job_for(
+        &self,
+        id: &str,
+        kind: &str,
+        input: Option<&str>,
+        request_id: Option<&str>,
+    ) -> Result<()> {
         let now = now_ms();
         let owner = if input.is_some() { "" } else { self.instance() };
         let mut tx = self.db.begin().await.context("cannot record the job")?;
-        sqlx::query(
-            "INSERT INTO jobs (id, kind, state, progress, owner, created_at, updated_at) \
-             VALUES ($1, $2, 'queued', 0.0, $3, $4, $5)",
-        )
+        // `seq` is the database's: PostgreSQL's column default takes the next value of its
+        // sequence; SQLite, whose writers are serialised, numbers it in the statement.
+        let seq = match self.backend() {
+            super::Backend::Postgres => "DEFAULT",
+            super::Backend::Sqlite => "(SELECT COALESCE(MAX(seq), 0) + 1 FROM jobs)",
+        };
+        sqlx::query(AssertSqlSafe(format!(
+            "INSERT INTO jobs (id, kind, state, progress, owner, created_at, updated_at, seq, \
+             request_id) VALUES ($1, $2, 'queued', 0.0, $3, $4, $5, {seq}, $6)"
+        )))
         .bind(id.to_string())
         .bind(kind.to_string())
         .bind(owner.to_string())
         .bind(now)
         .bind(now)
+        .bind(request_id.map(str::to_string))
         .execute(&mut *tx)
         .await
         .context("cannot record the job")?;
@@ -216,7 +260,7 @@ impl Store {
              attempts = attempts + 1 \
              WHERE state = 'queued' AND id = (SELECT id FROM jobs WHERE state = 'queued' \
              AND {HAS_INPUT} AND kind IN ({}) ORDER BY created_at, id LIMIT 1{lock}) \
-             RETURNING id, kind, attempts",
+             RETURNING id, kind, attempts, request_id",
             marks.join(", ")
         );
         let now = now_ms();
@@ -236,6 +280,7 @@ impl Store {
         };
         let id: String = row.try_get(0)?;
         let (kind, attempts) = (row.try_get(1)?, row.try_get(2)?);
+        let request_id: Option<String> = row.try_get(3)?;
         let input: Option<String> =
             sqlx::query_scalar("SELECT input FROM job_inputs WHERE id = $1")
                 .bind(id.clone())
@@ -249,6 +294,7 @@ impl Store {
             kind,
             input,
             attempts,
+            request_id,
         }))
     }
 
@@ -348,12 +394,13 @@ impl Store {
     /// Puts a stored job this instance runs (claim `epoch`) back in the queue, for any
     /// instance to run again: its work met a database outage and could not store its
     /// outcome. False when it is not this instance's to give back (cancelled, taken back,
-    /// in-process: no stored input). The claim still counts in `attempts`.
+    /// in-process: no stored input) or when it had [`MAX_CLAIMS`] claims. The claim is
+    /// not counted against the attempt limit (the outage is not the job's fault).
     pub async fn requeue_job(&self, id: &str, epoch: i64) -> Result<bool> {
         let n = sqlx::query(AssertSqlSafe(format!(
-            "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
+            "UPDATE jobs SET {GIVE_BACK}, \
              updated_at = $1 WHERE id = $2 AND owner = $3 AND attempts = $4 \
-             AND state IN ('running', 'storing') AND {HAS_INPUT}"
+             AND state IN ('running', 'storing') AND {HAS_INPUT} AND attempts < {MAX_CLAIMS}"
         )))
         .bind(now_ms())
         .bind(id.to_string())
@@ -369,7 +416,9 @@ impl Store {
     /// Puts back in the queue the stored jobs the database says this instance runs but
     /// which are not in `running` (the ids of the jobs its workers run): claims whose answer
     /// was lost to a cut connection, which no worker of this instance will ever run. Call
-    /// from the claim loop only (between claims). Returns how many.
+    /// from the claim loop only (between claims). Returns how many. The lost claims are not
+    /// counted against the attempt limit; a job past [`MAX_CLAIMS`] stays for the orphan
+    /// sweep ([`Store::release_orphans`]), which fails it.
     pub async fn release_lost_claims(&self, running: &[String]) -> Result<u64> {
         let marks: Vec<String> = (0..running.len()).map(|i| format!("${}", i + 3)).collect();
         let not_in = if marks.is_empty() {
@@ -378,8 +427,8 @@ impl Store {
             format!(" AND id NOT IN ({})", marks.join(", "))
         };
         let sql = format!(
-            "UPDATE jobs SET state = 'queued', owner = '', progress = 0.0, started_at = NULL, \
-             updated_at = $1 WHERE owner = $2 AND state = 'running' AND {HAS_INPUT}{not_in}"
+            "UPDATE jobs SET {GIVE_BACK}, updated_at = $1 WHERE owner = $2 \
+             AND state = 'running' AND {HAS_INPUT} AND attempts < {MAX_CLAIMS}{not_in}"
         );
         let mut q = sqlx::query(AssertSqlSafe(sql))
             .bind(now_ms())
@@ -454,15 +503,16 @@ impl Store {
     }
 
     /// Jobs newest first, optionally only those in `state` (`running` includes `storing`)
-    /// and of `kind`, at most `limit`, starting after `after` (the `(created_at, id)` of the
-    /// last job of the previous page). `with_result`: also read each job's result (else
+    /// and of `kind`, at most `limit`, starting after `after_seq` (the `seq` of the last job
+    /// of the previous page: numbered by the database in insertion order, so a job recorded
+    /// after the walk began is never placed among the pages already read). `with_result`: also read each job's result (else
     /// `result` is `None`, and the stored results are not read at all).
     pub async fn list_jobs(
         &self,
         state: Option<&str>,
         kind: Option<&str>,
         limit: usize,
-        after: Option<(i64, &str)>,
+        after_seq: Option<i64>,
         with_result: bool,
     ) -> Result<Vec<JobRecord>> {
         let states: Vec<String> = match state {
@@ -491,18 +541,10 @@ impl Store {
             arg += 1;
             sql.push_str(&format!(" AND kind = ${arg}"));
         }
-        if after.is_some() {
-            sql.push_str(&format!(
-                " AND (created_at < ${} OR (created_at = ${} AND id < ${}))",
-                arg + 1,
-                arg + 2,
-                arg + 3
-            ));
+        if after_seq.is_some() {
+            sql.push_str(&format!(" AND seq < ${}", arg + 1));
         }
-        sql.push_str(&format!(
-            " ORDER BY created_at DESC, id DESC LIMIT {}",
-            limit.min(10_000)
-        ));
+        sql.push_str(&format!(" ORDER BY seq DESC LIMIT {}", limit.min(10_000)));
         let mut q = sqlx::query(AssertSqlSafe(sql));
         for s in states {
             q = q.bind(s);
@@ -510,8 +552,8 @@ impl Store {
         if let Some(k) = kind {
             q = q.bind(k.to_string());
         }
-        if let Some((at, id)) = after {
-            q = q.bind(at).bind(at).bind(id.to_string());
+        if let Some(seq) = after_seq {
+            q = q.bind(seq);
         }
         let rows = q.fetch_all(&self.db).await?;
         rows.iter().map(record).collect()

@@ -30,7 +30,7 @@ pub use database::{Backend, DatabaseReport, PoolReport, Store};
 pub use idempotency::{Claim, IDEMPOTENCY_KEEP, IN_FLIGHT_STALE, KeptAnswer};
 pub use instances::{LeaseReport, Reaped};
 pub use iso230::Iso230Run;
-pub use jobs::{CancelOutcome, ClaimedJob, JobBytes, JobRecord};
+pub use jobs::{CancelOutcome, ClaimedJob, JobBytes, JobRecord, MAX_CLAIMS};
 pub use machines::MachineSummary;
 pub use measurements::{Inserted, Measurement, MeasurementSummary};
 pub use model_versions::{ModelVersion, ModelVersions, Rollback};

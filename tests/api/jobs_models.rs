@@ -8,7 +8,7 @@ use crate::helpers::*;
 use axum::response::IntoResponse;
 use serde_json::{Value, json};
 use truecut::api::ApiError;
-use truecut::jobs::JobPool;
+use truecut::jobs::{INTERRUPTED, JobPool};
 use truecut::store::Store;
 
 /// Polls `cond` every 10 ms for up to 5 s.
@@ -278,6 +278,68 @@ async fn an_earlier_claim_of_a_job_can_no_longer_write() {
     let rec = store.get_job("j").await.unwrap().unwrap();
     assert_eq!((rec.state.as_str(), rec.attempts), ("done", 3));
     assert_eq!(rec.result, Some(result));
+}
+
+/// Attempts count crashes, not outages, lost claims or stops (issue 41 item 4). A job given
+/// back eight times through no fault of its own (a database outage while storing, a claim
+/// whose answer was lost, a graceful stop, the orphan sweep) still has all its attempts;
+/// it fails only once [`truecut::jobs::MAX_ATTEMPTS`] instances crashed under it. Before the
+/// fix every claim counted, and the graceful stop after two outages failed it.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn attempts_count_crashes_not_outages_or_stops() {
+    let dir = tempfile::tempdir().unwrap();
+    let store = Store::open(dir.path(), None).await.unwrap();
+    store.register_instance(60_000).await.unwrap();
+    store.insert_job("j", "stored", Some("{}")).await.unwrap();
+    let kinds = ["stored".to_string()];
+    let counted = |store: Store| async move {
+        let rec = store.get_job("j").await.unwrap().unwrap();
+        (rec.state, rec.attempts, rec.counted_attempts)
+    };
+    for round in 0..2 {
+        let c = store.claim_job(&kinds).await.unwrap().unwrap();
+        assert!(store.requeue_job("j", c.attempts).await.unwrap(), "outage");
+        store.claim_job(&kinds).await.unwrap().unwrap();
+        assert_eq!(store.release_lost_claims(&[]).await.unwrap(), 1, "lost");
+        store.claim_job(&kinds).await.unwrap().unwrap();
+        let stopped = store.release_own_jobs(INTERRUPTED).await.unwrap();
+        assert_eq!((stopped.requeued, stopped.failed), (1, 0), "round {round}");
+        store.claim_job(&kinds).await.unwrap().unwrap();
+        tokio::time::sleep(Duration::from_millis(5)).await;
+        let orphans = store.release_orphans(&[], 1, "orphaned").await.unwrap();
+        assert_eq!(orphans.requeued, 1, "orphan");
+    }
+    assert_eq!(counted(store.clone()).await, ("queued".into(), 8, 0));
+    // Now three instances crash under it (leases of 300 ms, never renewed); the survivor's
+    // reaper takes it back twice and fails it the third time.
+    for crash in 1..=3 {
+        let doomed = Store::open(dir.path(), None).await.unwrap();
+        doomed.register_instance(300).await.unwrap();
+        let c = doomed.claim_job(&kinds).await.unwrap().unwrap();
+        assert_eq!(c.attempts, 8 + crash);
+        tokio::time::sleep(Duration::from_millis(400)).await;
+        let reaped = store
+            .reap_dead_instances(truecut::jobs::MAX_ATTEMPTS, INTERRUPTED)
+            .await
+            .unwrap();
+        let (state, attempts, counted_attempts) = counted(store.clone()).await;
+        assert_eq!((attempts, counted_attempts), (8 + crash, crash));
+        if crash < 3 {
+            assert_eq!((reaped.requeued, state.as_str()), (1, "queued"));
+        } else {
+            assert_eq!((reaped.failed, state.as_str()), (1, "failed"));
+        }
+    }
+    // However claims end, a job has at most MAX_CLAIMS of them.
+    store.insert_job("k", "stored", Some("{}")).await.unwrap();
+    let mut last = 0;
+    while let Some(c) = store.claim_job(&kinds).await.unwrap() {
+        last = c.attempts;
+        if !store.requeue_job("k", c.attempts).await.unwrap() {
+            break;
+        }
+    }
+    assert_eq!(last, truecut::store::MAX_CLAIMS);
 }
 
 /// An instance whose lease lapsed (no renewal within it) writes nothing for its jobs: no

@@ -30,6 +30,7 @@ mod iso230_trace;
 mod jobs_cancel;
 mod jobs_models;
 mod jobs_storage;
+mod observability;
 mod resources;
 mod scale_out;
 mod service;

@@ -265,26 +265,47 @@ async fn a_250k_point_csv_upload_round_trips() {
 
 /// Starts the real binary and returns (child, base URL) once it prints its address.
 pub(crate) fn start_binary(args: &[&str]) -> (std::process::Child, String) {
+    let (child, addr, _) = start_binary_logging(args, "warn");
+    (child, addr)
+}
+
+/// [`start_binary`] with `RUST_LOG` = `log` and every stderr line kept (in order).
+pub(crate) fn start_binary_logging(
+    args: &[&str],
+    log: &str,
+) -> (
+    std::process::Child,
+    String,
+    std::sync::Arc<std::sync::Mutex<Vec<String>>>,
+) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_truecut"))
         .args(args)
         .env_remove("DATABASE_URL")
         .env_remove("TRUECUT_TOKENS")
-        .env("RUST_LOG", "warn")
+        .env_remove("TRUECUT_LOG_FORMAT")
+        .env("RUST_LOG", log)
         .stderr(Stdio::piped())
         .stdout(Stdio::null())
         .spawn()
         .expect("binary starts");
     let stderr = child.stderr.take().unwrap();
     let mut lines = BufReader::new(stderr).lines();
+    let kept = std::sync::Arc::new(std::sync::Mutex::new(Vec::new()));
     let addr = loop {
         let line = lines.next().expect("binary printed its address").unwrap();
         if let Some(rest) = line.strip_prefix("truecut listening on ") {
             break rest.split_whitespace().next().unwrap().to_string();
         }
+        kept.lock().unwrap().push(line);
     };
     // Keep draining stderr so the child never blocks on a full pipe.
-    std::thread::spawn(move || for _ in lines {});
-    (child, addr)
+    let sink = kept.clone();
+    std::thread::spawn(move || {
+        for line in lines.map_while(Result::ok) {
+            sink.lock().unwrap().push(line);
+        }
+    });
+    (child, addr, kept)
 }
 
 #[tokio::test(flavor = "multi_thread", worker_threads = 2)]
