@@ -20,6 +20,7 @@
 //! dropped when it ends, and jobs older than `--job-retention` are deleted
 //! ([`JobPool::start_pruning`]).
 
+mod error;
 mod lease;
 mod limits;
 mod pool;
@@ -27,11 +28,9 @@ mod progress;
 mod stats;
 mod worker;
 
+pub use error::{Error, RETRY_AFTER_S};
 pub use limits::prune_interval;
-pub use pool::{
-    CLAIM_POLL, DEFAULT_LEASE, Error, INTERRUPTED, JobPage, JobPool, MAX_ATTEMPTS, RETRY_AFTER_S,
-    Runner,
-};
+pub use pool::{CLAIM_POLL, DEFAULT_LEASE, INTERRUPTED, JobPage, JobPool, MAX_ATTEMPTS, Runner};
 pub use progress::{CANCEL_POLL, Cancel, Cancelled, JobStatus, Progress};
 pub use stats::{
     JobStats, Outcome, REQUEST_ID, RUN_BUCKETS_S, RunTimes, StatsSnapshot, TakeBack,

@@ -9,6 +9,7 @@ use std::time::{Duration, Instant};
 use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
 use tokio::task::JoinHandle;
 
+use super::error::Error;
 use super::lease::{heartbeat_loop, log_reaped, reaper_loop};
 use super::limits::{SetOnDrop, sleep_or_forever};
 use super::progress::{Cancel, JobStatus, Progress};
@@ -38,42 +39,6 @@ pub const DEFAULT_LEASE: Duration = Duration::from_secs(10);
 /// How often an idle instance looks for jobs queued through another instance (jobs queued
 /// through this one are taken at once).
 pub const CLAIM_POLL: Duration = Duration::from_millis(250);
-
-/// Seconds a rejected caller is told to wait (`Retry-After`).
-pub const RETRY_AFTER_S: u64 = 2;
-
-/// Why the pool did not run or record a piece of work. The pool knows nothing of HTTP:
-/// `api/error.rs` decides the statuses (503 + Retry-After for the rejections, 500 otherwise).
-#[non_exhaustive]
-#[derive(Debug, thiserror::Error)]
-pub enum Error {
-    /// Every worker is busy and the queue is full: retry after [`RETRY_AFTER_S`].
-    #[error("all {workers} workers are busy and the queue is full; retry in {RETRY_AFTER_S} s")]
-    Full {
-        /// Number of worker slots.
-        workers: usize,
-    },
-    /// The pool stopped admitting work ([`JobPool::shutdown`]).
-    #[error("the server is shutting down; retry on another instance or after restart")]
-    ShuttingDown,
-    /// The worker running the closure failed (a panic) or the pool closed under it.
-    #[error("{0}")]
-    Worker(String),
-    /// The job could not be recorded.
-    #[error("{0:#}")]
-    Store(#[from] anyhow::Error),
-    /// Synchronous work ran longer than the pool's time limit (`--job-timeout`) and was
-    /// stopped.
-    #[error(
-        "the computation ran longer than the server's --job-timeout ({} s) and was stopped; \
-         send a smaller input, or ask the operator for a longer timeout",
-        .after.as_secs_f64()
-    )]
-    Stopped {
-        /// The time limit.
-        after: Duration,
-    },
-}
 
 pub(super) struct Inner {
     pub(super) store: Store,

@@ -109,6 +109,11 @@ pub struct Decomposition {
     /// part, which there comes from their neighbours; their whole deviation is in `random`
     /// ([`super::flyers`], openapi.yaml measurement upload and decomposition `outliers`).
     pub outliers: Vec<usize>,
+    /// The VMD sweep's kernel that computed it ([`super::vmd::kernel`]: `avx2-fma` or
+    /// `portable`), for the methods that run VMD: the same input, version and kernel give
+    /// the same bits on any host.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub kernel: Option<&'static str>,
 }
 
 /// Decompositions in progress in the process ([`decompose`] calls). Each also counts its
@@ -323,6 +328,7 @@ fn decompose_plain(
         random,
         components: comps,
         outliers: Vec::new(),
+        kernel: matches!(method, Method::CoarseToFine | Method::Vmd).then(super::vmd::kernel),
     })
 }
 

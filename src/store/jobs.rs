@@ -23,7 +23,7 @@
 //! whole record on UPDATE (migrations/*/0005).
 //!
 //! Bounded storage (issue 25): a job's input is dropped as soon as it ends, and
-//! [`Store::prune_jobs`] deletes the jobs that ended longer ago than the retention, so the
+//! [`Store::prune_jobs`] (`job_list.rs`, with the reads) deletes the jobs that ended longer ago than the retention, so the
 //! table holds the unfinished jobs' inputs and the retained jobs' results, nothing more.
 
 use anyhow::{Context, Result};
@@ -88,17 +88,6 @@ pub struct ClaimedJob {
     pub request_id: Option<String>,
 }
 
-/// What the jobs table holds ([`Store::job_bytes`]).
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize)]
-pub struct JobBytes {
-    /// Job rows.
-    pub jobs: u64,
-    /// Bytes of stored inputs (only unfinished jobs keep theirs).
-    pub input_bytes: u64,
-    /// Bytes of stored results.
-    pub result_bytes: u64,
-}
-
 /// What [`Store::cancel_job`] found.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum CancelOutcome {
@@ -127,11 +116,11 @@ pub const MAX_CLAIMS: i64 = 20;
 pub(super) const GIVE_BACK: &str = "state = 'queued', owner = '', progress = 0.0, \
      started_at = NULL, free_claims = free_claims + 1";
 
-const COLUMNS: &str = "id, kind, state, progress, result, error, created_at, updated_at, \
+pub(super) const COLUMNS: &str = "id, kind, state, progress, result, error, created_at, updated_at, \
                        started_at, finished_at, owner, attempts, attempts - free_claims, seq, \
                        request_id";
 
-fn record(row: &AnyRow) -> Result<JobRecord> {
+pub(super) fn record(row: &AnyRow) -> Result<JobRecord> {
     let result: Option<String> = row.try_get(4)?;
     Ok(JobRecord {
         id: row.try_get(0)?,
@@ -367,6 +356,9 @@ impl Store {
     ) -> Result<bool> {
         let now = now_ms();
         let fence = super::instances::lease_held_sql(self.backend(), "$8");
+        // The outcome and the input's removal commit together: a retry after a failed
+        // removal would match no row (the job has ended) and leave the input behind.
+        let mut tx = self.db.begin().await.context("cannot update the job")?;
         let n = sqlx::query(AssertSqlSafe(format!(
             "UPDATE jobs SET state = $1, progress = $2, result = $3, error = $4, updated_at = $5, \
              finished_at = $6 WHERE id = $7 AND owner = $8 AND attempts = $9 \
@@ -381,13 +373,18 @@ impl Store {
         .bind(id.to_string())
         .bind(self.instance().to_string())
         .bind(epoch)
-        .execute(&self.db)
+        .execute(&mut *tx)
         .await
         .context("cannot update the job")?
         .rows_affected();
         if n == 1 {
-            self.drop_job_input(id).await?;
+            sqlx::query("DELETE FROM job_inputs WHERE id = $1")
+                .bind(id.to_string())
+                .execute(&mut *tx)
+                .await
+                .context("cannot drop the job's input")?;
         }
+        tx.commit().await.context("cannot update the job")?;
         Ok(n == 1)
     }
 
@@ -479,145 +476,5 @@ impl Store {
             .await
             .context("cannot drop the job's input")?;
         Ok(())
-    }
-
-    /// The job's stored state only (cheap; the pool polls it to see remote cancellations).
-    pub async fn job_state(&self, id: &str) -> Result<Option<String>> {
-        let row = sqlx::query("SELECT state FROM jobs WHERE id = $1")
-            .bind(id.to_string())
-            .fetch_optional(&self.db)
-            .await?;
-        row.map(|r| r.try_get::<String, _>(0).map_err(Into::into))
-            .transpose()
-    }
-
-    /// The job, or `None`.
-    pub async fn get_job(&self, id: &str) -> Result<Option<JobRecord>> {
-        let row = sqlx::query(AssertSqlSafe(format!(
-            "SELECT {COLUMNS} FROM jobs WHERE id = $1"
-        )))
-        .bind(id.to_string())
-        .fetch_optional(&self.db)
-        .await?;
-        row.as_ref().map(record).transpose()
-    }
-
-    /// Jobs newest first, optionally only those in `state` (`running` includes `storing`)
-    /// and of `kind`, at most `limit`, starting after `after_seq` (the `seq` of the last job
-    /// of the previous page: numbered by the database in insertion order, so a job recorded
-    /// after the walk began is never placed among the pages already read). `with_result`: also read each job's result (else
-    /// `result` is `None`, and the stored results are not read at all).
-    pub async fn list_jobs(
-        &self,
-        state: Option<&str>,
-        kind: Option<&str>,
-        limit: usize,
-        after_seq: Option<i64>,
-        with_result: bool,
-    ) -> Result<Vec<JobRecord>> {
-        let states: Vec<String> = match state {
-            Some("running") => vec!["running".into(), "storing".into()],
-            Some(s) => vec![s.to_string()],
-            None => vec![],
-        };
-        let columns = if with_result {
-            COLUMNS.to_string()
-        } else {
-            COLUMNS.replacen("result", "CAST(NULL AS TEXT)", 1)
-        };
-        let mut sql = format!("SELECT {columns} FROM jobs WHERE 1 = 1");
-        let mut arg = 0;
-        if !states.is_empty() {
-            let marks: Vec<String> = states
-                .iter()
-                .map(|_| {
-                    arg += 1;
-                    format!("${arg}")
-                })
-                .collect();
-            sql.push_str(&format!(" AND state IN ({})", marks.join(", ")));
-        }
-        if kind.is_some() {
-            arg += 1;
-            sql.push_str(&format!(" AND kind = ${arg}"));
-        }
-        if after_seq.is_some() {
-            sql.push_str(&format!(" AND seq < ${}", arg + 1));
-        }
-        sql.push_str(&format!(" ORDER BY seq DESC LIMIT {}", limit.min(10_000)));
-        let mut q = sqlx::query(AssertSqlSafe(sql));
-        for s in states {
-            q = q.bind(s);
-        }
-        if let Some(k) = kind {
-            q = q.bind(k.to_string());
-        }
-        if let Some(seq) = after_seq {
-            q = q.bind(seq);
-        }
-        let rows = q.fetch_all(&self.db).await?;
-        rows.iter().map(record).collect()
-    }
-
-    /// Deletes the jobs that ended (done, failed, cancelled) more than `retention` ago, and
-    /// drops the input of every ended job still holding one (jobs failed by an instance's
-    /// takeover). Returns how many jobs were deleted. Idempotent, so any number of instances
-    /// sharing the database may run it. After a deletion, on PostgreSQL the table is vacuumed
-    /// (plain `VACUUM`, no lock beyond a normal write's) so the space is reused at once; on
-    /// SQLite the write-ahead log is checkpointed and truncated.
-    pub async fn prune_jobs(&self, retention: std::time::Duration) -> Result<u64> {
-        let cutoff =
-            now_ms().saturating_sub(i64::try_from(retention.as_millis()).unwrap_or(i64::MAX));
-        let deleted = sqlx::query(
-            "DELETE FROM jobs WHERE state IN ('done', 'failed', 'cancelled') \
-             AND COALESCE(finished_at, updated_at) < $1",
-        )
-        .bind(cutoff)
-        .execute(&self.db)
-        .await
-        .context("cannot delete old jobs")?
-        .rows_affected();
-        sqlx::query(
-            "DELETE FROM job_inputs WHERE id IN \
-             (SELECT id FROM jobs WHERE state IN ('done', 'failed', 'cancelled'))",
-        )
-        .execute(&self.db)
-        .await
-        .context("cannot drop the inputs of ended jobs")?;
-        if deleted > 0 {
-            match self.backend() {
-                // VACUUM may not run in a transaction block: the simple query protocol.
-                super::Backend::Postgres => sqlx::raw_sql("VACUUM jobs")
-                    .execute(&self.db)
-                    .await
-                    .context("cannot vacuum the jobs table")?,
-                // The freed pages are reused by later rows; the WAL, which only shrinks when
-                // truncated, is brought back to empty (a busy reader just postpones it).
-                super::Backend::Sqlite => sqlx::raw_sql("PRAGMA wal_checkpoint(TRUNCATE)")
-                    .execute(&self.db)
-                    .await
-                    .context("cannot checkpoint the write-ahead log")?,
-            };
-        }
-        Ok(deleted)
-    }
-
-    /// How many jobs the table holds and the bytes of their stored inputs and results.
-    pub async fn job_bytes(&self) -> Result<JobBytes> {
-        let row = sqlx::query(
-            "SELECT COUNT(*), \
-             CAST(COALESCE((SELECT SUM(LENGTH(input)) FROM job_inputs), 0) AS BIGINT), \
-             CAST(COALESCE(SUM(LENGTH(result)), 0) AS BIGINT) FROM jobs",
-        )
-        .fetch_one(&self.db)
-        .await
-        .context("cannot measure the jobs table")?;
-        let n =
-            |i: usize| -> Result<u64> { Ok(u64::try_from(row.try_get::<i64, _>(i)?).unwrap_or(0)) };
-        Ok(JobBytes {
-            jobs: n(0)?,
-            input_bytes: n(1)?,
-            result_bytes: n(2)?,
-        })
     }
 }

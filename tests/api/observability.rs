@@ -68,6 +68,13 @@ async fn json_logs_tie_a_job_to_its_request_and_metrics_count_it() {
     }
     assert_eq!(job["state"], "done", "{job}");
     assert_eq!(job["request_id"], "obs-req-41", "{job}");
+    // The answer names the VMD kernel that computed it (issue 41 item 9: cross-host bits).
+    let kernel = job["result"]["kernel"].as_str();
+    assert!(
+        matches!(kernel, Some("avx2-fma" | "portable")),
+        "{}",
+        job["result"]["kernel"]
+    );
     assert_eq!(
         (job["attempts"].as_i64(), job["counted_attempts"].as_i64()),
         (Some(1), Some(1))

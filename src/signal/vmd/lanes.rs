@@ -43,10 +43,10 @@ pub(super) trait Lanes: Real + std::ops::Add<Output = Self> {
     unsafe fn fmadd(a: Self::V, b: Self::V, c: Self::V) -> Self::V;
     /// Σ of the lanes in f64, lane 0 first.
     unsafe fn hsum(v: Self::V) -> f64;
-    /// 1 / a for a ≥ 1 (the sweep's Wiener denominators): the division in f64; in f32 the
-    /// 12-bit hardware estimate r₀ = rcp(a) and one Newton step r₀(2 − a·r₀), relative error
-    /// ≤ 2⁻²² (Intel SDM: |rcp error| ≤ 1.5·2⁻¹², squared by the step), a quarter of the
-    /// division's issue cost.
+    /// 1 / a for a ≥ 1 (the sweep's Wiener denominators): the IEEE division, correctly
+    /// rounded, in both widths. Not the f32 hardware estimate (`rcp`) refined by a Newton
+    /// step: its 12-bit table is the vendor's own (Intel's and AMD's differ), so the answer's
+    /// bits would depend on the CPU's maker (issue 41 item 9).
     unsafe fn recip(a: Self::V) -> Self::V;
 }
 
@@ -152,16 +152,11 @@ unsafe fn recip_f64(a: __m256d) -> __m256d {
     unsafe { _mm256_div_pd(_mm256_set1_pd(1.0), a) }
 }
 
-/// 1 / a by the hardware estimate and one Newton step (see [`Lanes::recip`]).
+/// 1 / a by division (see [`Lanes::recip`]: the same bits on every x86-64 maker).
 ///
-/// Safety: the CPU supports AVX and FMA.
+/// Safety: the CPU supports AVX.
 #[inline(always)]
 unsafe fn recip_f32(a: __m256) -> __m256 {
-    // SAFETY: the caller guarantees AVX and FMA.
-    unsafe {
-        let r = _mm256_rcp_ps(a);
-        // r (2 − a r) = r + r (1 − a r), with 1 − a r in one rounding.
-        let e = _mm256_fnmadd_ps(a, r, _mm256_set1_ps(1.0));
-        _mm256_fmadd_ps(r, e, r)
-    }
+    // SAFETY: the caller guarantees AVX.
+    unsafe { _mm256_div_ps(_mm256_set1_ps(1.0), a) }
 }

@@ -22,3 +22,4 @@ pub use admm::{
     Convergence, F32_MIN_BINS, VmdParams, VmdResult, choose_k, mean_instantaneous_frequency, vmd,
 };
 pub use iteration::with_threads;
+pub use sweep::kernel;

@@ -73,6 +73,20 @@ impl Real for f32 {
 /// = 1), bin frequencies, ω, α; adds to the sums.
 pub(super) type Kernel<C> = fn(&mut [&mut [C]], &[C], Option<&[C]>, &[C], &[f64], f64, &mut Sums);
 
+/// The VMD sweep's kernel on this CPU: `avx2-fma` (x86-64 with AVX2 and FMA: the
+/// intrinsics below, IEEE operations only, so the same bits on any maker's CPU for a given
+/// build) or `portable` (plain Rust, whose last bits differ from the other's: no fused
+/// multiply-add). A decomposition names it, so two answers whose bits differ can tell why.
+pub fn kernel() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if std::is_x86_feature_detected!("avx2") && std::is_x86_feature_detected!("fma") {
+            return "avx2-fma";
+        }
+    }
+    "portable"
+}
+
 /// The f64 kernel: AVX2+FMA (4 bins per instruction) when available, else portable.
 pub(super) fn kernel_f64(
     c: &mut [&mut [f64]],
