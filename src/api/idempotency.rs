@@ -13,6 +13,11 @@
 //!   key, so a retry after a refusal or a failure runs anew. Without the header nothing
 //!   changes.
 //!
+//! - A key whose first request's instance died (its lease lapsed) is taken over at once by
+//!   the retry, which then runs anew; what it records without an id of the client's takes
+//!   the id derived from the key ([`KeyedId`]), so a record or job the first try committed is
+//!   met (replayed), not stored twice.
+//!
 //! The body reaches the handler as it arrives (uploads stay streamed); its digest is taken on
 //! the way. A replay reads the whole body for its digest (through the same pace and budget).
 
@@ -52,6 +57,22 @@ pub const ROUTES: [&str; 7] = [
     "/v1/machines/{machine}/compensated-program",
     "/v1/machines/{machine}/surfaces/{surface}/step-error-model",
 ];
+
+/// The id of what a keyed request records when it names none (a measurement without an
+/// id, a job): derived from the key and its scope, so that a second try of the request
+/// (after its first try's instance died holding the key, possibly after the record was
+/// committed) meets the first try's record instead of storing a twin. A UUID version 8
+/// whose bits are the first 122 of SHA-256(scope, newline, key) (RFC 9562 §5.8).
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct KeyedId(pub String);
+
+/// [`KeyedId`] of `key` in `scope`.
+fn keyed_id(scope: &str, key: &str) -> String {
+    let digest = Sha256::digest(format!("{scope}\n{key}").as_bytes());
+    let mut bytes = [0u8; 16];
+    bytes.copy_from_slice(&digest[..16]);
+    uuid::Uuid::new_v8(bytes).to_string()
+}
 
 /// Answer headers kept and replayed.
 const KEPT_HEADERS: [header::HeaderName; 2] = [header::LOCATION, header::CONTENT_TYPE];
@@ -140,7 +161,14 @@ pub async fn idempotent(State(state): State<AppState>, req: Request, next: Next)
             replay(answer)
         }
         Claim::Claimed(claim) => {
-            run_holding(state.store.clone(), scope, key, claim, req, next).await
+            let id = keyed_id(&scope, &key);
+            let mut req = req;
+            req.extensions_mut().insert(KeyedId(id.clone()));
+            crate::jobs::with_keyed_id(
+                id,
+                run_holding(state.store.clone(), scope, key, claim, req, next),
+            )
+            .await
         }
     }
 }

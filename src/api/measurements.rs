@@ -66,6 +66,12 @@ async fn post_measurement(
     if is_csv && let Some(id) = &query_id {
         refuse_taken(&state, &machine, &surface, id).await?;
     }
+    // An upload without an id under an Idempotency-Key takes the key's id: a retry after its
+    // first try's instance died meets the first try's record (a replay), not a twin.
+    let keyed = req
+        .extensions()
+        .get::<super::idempotency::KeyedId>()
+        .map(|k| k.0.clone());
     // Parsed as it arrives; a CSV with more rows than the grid is refused at the first one.
     let (data, body_id) = parse_streaming(req.into_body(), move |input| {
         if is_csv {
@@ -78,7 +84,10 @@ async fn post_measurement(
     let id = match (body_id, query_id) {
         (Some(id), _) => Id::parse("measurement", &id)?,
         (None, Some(id)) => id,
-        (None, None) => Id::parse("measurement", &uuid::Uuid::now_v7().to_string())?,
+        (None, None) => Id::parse(
+            "measurement",
+            &keyed.unwrap_or_else(|| uuid::Uuid::now_v7().to_string()),
+        )?,
     };
     let surf = require_surface_shared(&state, &machine, &surface).await?;
     let (nu, nv) = (surf.nu, surf.nv);

@@ -21,6 +21,7 @@
 //! ([`JobPool::start_pruning`]).
 
 mod error;
+mod keyed;
 mod lease;
 mod limits;
 mod pool;
@@ -29,6 +30,7 @@ mod stats;
 mod worker;
 
 pub use error::{Error, RETRY_AFTER_S};
+pub use keyed::with_keyed_id;
 pub use limits::prune_interval;
 pub use pool::{CLAIM_POLL, DEFAULT_LEASE, INTERRUPTED, JobPage, JobPool, MAX_ATTEMPTS, Runner};
 pub use progress::{CANCEL_POLL, Cancel, Cancelled, JobStatus, Progress};

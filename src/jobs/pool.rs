@@ -10,6 +10,7 @@ use tokio::sync::{Notify, OwnedSemaphorePermit, Semaphore};
 use tokio::task::JoinHandle;
 
 use super::error::Error;
+use super::keyed::take_keyed_id;
 use super::lease::{heartbeat_loop, log_reaped, reaper_loop};
 use super::limits::{SetOnDrop, sleep_or_forever};
 use super::progress::{Cancel, JobStatus, Progress};
@@ -244,13 +245,18 @@ impl JobPool {
                 workers: self.inner.worker_count,
             });
         }
-        let id = uuid::Uuid::now_v7().to_string();
+        let id = take_keyed_id().unwrap_or_else(|| uuid::Uuid::now_v7().to_string());
         let request_id = current_request_id();
-        self.inner
+        // False: a job with this keyed id exists (an earlier try of the same request
+        // recorded it): its id is the answer, and it runs once.
+        if self
+            .inner
             .store
             .insert_job_for(&id, kind, Some(&input), request_id.as_deref())
-            .await?;
-        self.inner.work.notify_one();
+            .await?
+        {
+            self.inner.work.notify_one();
+        }
         Ok(id)
     }
 
@@ -357,12 +363,19 @@ impl JobPool {
         f: impl FnOnce(&Progress) -> Result<serde_json::Value, String> + Send + 'static,
     ) -> Result<String, Error> {
         let admitted = self.admit()?;
-        let id = uuid::Uuid::now_v7().to_string();
+        let id = take_keyed_id().unwrap_or_else(|| uuid::Uuid::now_v7().to_string());
         let request_id = current_request_id();
-        self.inner
+        if !self
+            .inner
             .store
             .insert_job_for(&id, kind, None, request_id.as_deref())
-            .await?;
+            .await?
+        {
+            // An earlier try of the same request recorded this job (keyed id): the answer
+            // is that job, whatever became of it (a try whose instance died ended it
+            // failed, "interrupted"); it is not run twice.
+            return Ok(id);
+        }
         let progress = new_progress(&self.inner, &id);
         self.lock_live().insert(id.clone(), progress.clone());
         self.inner.queued.fetch_add(1, Ordering::Relaxed);

@@ -57,7 +57,8 @@ impl Store {
     /// the answered first request. A key answered longer than [`IDEMPOTENCY_KEEP`] ago (not
     /// yet pruned) counts as free; one in flight longer than [`IN_FLIGHT_STALE`] is taken over.
     pub async fn claim_idempotency_key(&self, scope: &str, key: &str) -> Result<Claim> {
-        let claim = uuid::Uuid::now_v7().to_string();
+        // `instance/uuid`: a key whose holder's instance is gone is taken over at once.
+        let claim = format!("{}/{}", self.instance(), uuid::Uuid::now_v7());
         // A few turns: the row may be released or expire between the insert and the read.
         for _ in 0..5 {
             let now = now_ms();
@@ -89,7 +90,9 @@ impl Store {
             let status: Option<i64> = row.try_get(1)?;
             let created_at: i64 = row.try_get(5)?;
             let stale = match status {
-                None => created_at < now - ms(IN_FLIGHT_STALE),
+                None => {
+                    created_at < now - ms(IN_FLIGHT_STALE) || !self.holder_lives(&holder).await?
+                }
                 Some(_) => created_at < now - ms(IDEMPOTENCY_KEEP),
             };
             if stale {
@@ -188,5 +191,24 @@ impl Store {
             .context("cannot prune idempotency keys")?
             .rows_affected();
         Ok(n)
+    }
+
+    /// Whether the instance that holds an in-flight claim (`instance/uuid`) still holds its
+    /// lease: a request of an instance that died (kill, crash) will never answer, so its key
+    /// is free for the retry at once rather than after [`IN_FLIGHT_STALE`]. Claims without
+    /// an instance (written before 2026-12-07) count as held.
+    async fn holder_lives(&self, claim: &str) -> Result<bool> {
+        let Some((instance, _)) = claim.split_once('/') else {
+            return Ok(true);
+        };
+        let held = super::instances::lease_held_sql(self.backend(), "$1");
+        let row = sqlx::query(sqlx::AssertSqlSafe(format!(
+            "SELECT CAST(CASE WHEN {held} THEN 1 ELSE 0 END AS BIGINT)"
+        )))
+        .bind(instance.to_string())
+        .fetch_one(&self.db)
+        .await
+        .context("cannot read the lease of an idempotency key's holder")?;
+        Ok(row.try_get::<i64, _>(0)? == 1)
     }
 }

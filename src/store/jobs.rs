@@ -148,17 +148,18 @@ impl Store {
     /// Records a new queued job: with `input` (JSON text) any instance may claim it
     /// ([`Store::claim_job`]); without, it is this instance's in-process job.
     pub async fn insert_job(&self, id: &str, kind: &str, input: Option<&str>) -> Result<()> {
-        self.insert_job_for(id, kind, input, None).await
+        self.insert_job_for(id, kind, input, None).await.map(|_| ())
     }
 
-    /// [`Store::insert_job`] for the request whose X-Request-Id is `request_id`.
+    /// [`Store::insert_job`] for the request whose X-Request-Id is `request_id`. False when
+    /// a job with this id exists already (a retry of a keyed submission): nothing is written.
     pub async fn insert_job_for(
         &self,
         id: &str,
         kind: &str,
         input: Option<&str>,
         request_id: Option<&str>,
-    ) -> Result<()> {
+    ) -> Result<bool> {
         let now = now_ms();
         let owner = if input.is_some() { "" } else { self.instance() };
         let mut tx = self.db.begin().await.context("cannot record the job")?;
@@ -168,9 +169,10 @@ impl Store {
             super::Backend::Postgres => "DEFAULT",
             super::Backend::Sqlite => "(SELECT COALESCE(MAX(seq), 0) + 1 FROM jobs)",
         };
-        sqlx::query(AssertSqlSafe(format!(
+        let inserted = sqlx::query(AssertSqlSafe(format!(
             "INSERT INTO jobs (id, kind, state, progress, owner, created_at, updated_at, seq, \
-             request_id) VALUES ($1, $2, 'queued', 0.0, $3, $4, $5, {seq}, $6)"
+             request_id) VALUES ($1, $2, 'queued', 0.0, $3, $4, $5, {seq}, $6) \
+             ON CONFLICT (id) DO NOTHING"
         )))
         .bind(id.to_string())
         .bind(kind.to_string())
@@ -180,7 +182,11 @@ impl Store {
         .bind(request_id.map(str::to_string))
         .execute(&mut *tx)
         .await
-        .context("cannot record the job")?;
+        .context("cannot record the job")?
+        .rows_affected();
+        if inserted == 0 {
+            return Ok(false);
+        }
         if let Some(input) = input {
             sqlx::query("INSERT INTO job_inputs (id, input) VALUES ($1, $2)")
                 .bind(id.to_string())
@@ -190,7 +196,7 @@ impl Store {
                 .context("cannot store the job's input")?;
         }
         tx.commit().await.context("cannot record the job")?;
-        Ok(())
+        Ok(true)
     }
 
     /// Marks a queued job of this instance running (start time now): its epoch (the claim

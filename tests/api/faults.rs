@@ -2,8 +2,12 @@
 //! serve` instances on one PostgreSQL database of the test's own, under steady load, while
 //! every ~12 s one instance is killed with SIGKILL (and started again on its data dir) and
 //! every ~20 s every database connection is cut (`pg_terminate_backend`, as a failover or a
-//! network blip looks to the instances). The load: measurement uploads, each with a client
-//! id (so a duplicate or a loss shows), and stored decomposition jobs on two inputs, whose
+//! network blip looks to the instances). The load goes through nginx with the fleet's own
+//! proxy file (`proxy.rs`; without nginx installed the clients spread it themselves and say
+//! so). The load: measurement uploads, one client with ids of its own and two without,
+//! under an `Idempotency-Key` (each upload's content names it, so a duplicate, i.e. one
+//! upload stored twice, or a loss shows whatever the ids), and stored decomposition jobs on
+//! two inputs, whose
 //! answers are compared bit for bit (the MD5 of the stored result text) with one reference
 //! run of each before the faults start. Clients retry on 503 and on refused or broken
 //! connections, as a load balancer would, and count them.
@@ -159,6 +163,43 @@ impl Fleet {
         sent_before: &mut bool,
         give_up: Duration,
     ) -> Result<Answer, u32> {
+        self.send_with(turn, method, path, body, None, sent_before, give_up)
+            .await
+    }
+
+    /// [`Fleet::send`] of a POST, under `Idempotency-Key: key` when given.
+    async fn send_keyed(
+        &self,
+        turn: &mut usize,
+        path: &str,
+        body: &bytes::Bytes,
+        key: Option<&str>,
+        sent_before: &mut bool,
+        give_up: Duration,
+    ) -> Result<Answer, u32> {
+        self.send_with(
+            turn,
+            reqwest::Method::POST,
+            path,
+            Some(body),
+            key,
+            sent_before,
+            give_up,
+        )
+        .await
+    }
+
+    #[allow(clippy::too_many_arguments)]
+    async fn send_with(
+        &self,
+        turn: &mut usize,
+        method: reqwest::Method,
+        path: &str,
+        body: Option<&bytes::Bytes>,
+        key: Option<&str>,
+        sent_before: &mut bool,
+        give_up: Duration,
+    ) -> Result<Answer, u32> {
         let t0 = Instant::now();
         let mut attempts = 0;
         loop {
@@ -178,6 +219,9 @@ impl Fleet {
             }
             if path == "/v1/decompose" {
                 rq = rq.header("prefer", "respond-async");
+            }
+            if let Some(k) = key {
+                rq = rq.header("idempotency-key", k);
             }
             match rq.send().await {
                 Ok(r) => {
@@ -236,43 +280,89 @@ impl Fleet {
     }
 }
 
-/// The deviations of upload `n` of client `c` (distinct per upload, within the limits).
+/// Uploads a client may make: the tag of upload `n` is written in its first deviation.
+const MAX_UPLOADS: usize = 100_000;
+
+/// The deviations of upload `n` of client `c`, mm: a pattern within the limits, and the
+/// first one names the upload (`c` mm + `n` × 10 nm), so every upload's content is its own
+/// and a stored row tells which upload it is, whatever its id.
 fn deviations(c: usize, n: usize) -> Vec<f64> {
+    assert!(n < MAX_UPLOADS);
     (0..GRID * GRID)
-        .map(|k| ((c * 7919 + n * 31 + k * 17) % 1000) as f64 * 1e-5 - 0.005)
+        .map(|k| match k {
+            0 => c as f64 * 1e-3 + n as f64 * 1e-8,
+            _ => ((c * 7919 + n * 31 + k * 17) % 1000) as f64 * 1e-5 - 0.005,
+        })
         .collect()
 }
 
-/// A measurement-upload client: uploads `c{c}-{n}` until told to stop. Returns the ids
-/// acknowledged (201, or 409 on a retry of an attempt that may have been stored) and the
-/// ids whose fate is unknown (no answer before giving up).
-async fn upload_client(fleet: Arc<Fleet>, c: usize) -> (Vec<String>, Vec<String>) {
+/// The (client, upload) a stored row's deviations name ([`deviations`]).
+fn upload_of(first: f64) -> (usize, usize) {
+    let c = (first / 1e-3 + 1e-6).floor();
+    let n = ((first - c * 1e-3) / 1e-8).round();
+    (c as usize, n as usize)
+}
+
+/// A measurement-upload client: uploads `c{c}-{n}` until told to stop, `keyed`: without an
+/// id, under `Idempotency-Key: c{c}-{n}` (the service names the record), else with that id
+/// in the body. A retry of the same upload must be answered as the first try (201, a replay
+/// when it was stored); a 409 is a failure, except "still being answered" on a key, which is
+/// retried. Returns the uploads acknowledged (tag, id) and those whose fate is unknown (no
+/// answer before giving up).
+async fn upload_client(
+    fleet: Arc<Fleet>,
+    c: usize,
+    keyed: bool,
+) -> (Vec<(String, String)>, Vec<String>) {
     let mut turn = c;
     let (mut acked, mut unknown) = (Vec::new(), Vec::new());
     let path = "/v1/machines/m/surfaces/s/measurements";
     let mut n = 0;
-    while !fleet.stop.load(Ordering::Relaxed) {
-        let id = format!("c{c}-{n}");
-        let body =
-            bytes::Bytes::from(json!({"id": id, "deviations": deviations(c, n)}).to_string());
-        let mut sent = false;
-        match fleet
-            .send(
-                &mut turn,
-                reqwest::Method::POST,
-                path,
-                Some(&body),
-                &mut sent,
-                Duration::from_secs(60),
-            )
-            .await
-        {
-            Ok(a) if a.status == 201 => acked.push(id),
-            Ok(a) if a.status == 409 && sent => acked.push(id),
-            Ok(a) => fleet
-                .counts
-                .bad(format!("upload {id}: unexpected {} {}", a.status, a.body)),
-            Err(_) => unknown.push(id),
+    while !fleet.stop.load(Ordering::Relaxed) && n < MAX_UPLOADS {
+        let tag = format!("c{c}-{n}");
+        let body = if keyed {
+            json!({"deviations": deviations(c, n)})
+        } else {
+            json!({"id": tag, "deviations": deviations(c, n)})
+        };
+        let body = bytes::Bytes::from(body.to_string());
+        let key = keyed.then_some(tag.as_str());
+        let t0 = Instant::now();
+        loop {
+            let mut sent = false;
+            let answer = fleet
+                .send_keyed(
+                    &mut turn,
+                    path,
+                    &body,
+                    key,
+                    &mut sent,
+                    Duration::from_secs(60),
+                )
+                .await;
+            match answer {
+                Ok(a) if a.status == 201 => {
+                    let v: Value = serde_json::from_str(&a.body).unwrap_or_default();
+                    let id = v["id"].as_str().unwrap_or_default().to_string();
+                    acked.push((tag, id));
+                }
+                Ok(a)
+                    if a.status == 409
+                        && keyed
+                        && a.body.contains("still being answered")
+                        && t0.elapsed() < Duration::from_secs(60) =>
+                {
+                    // The first try still holds the key (or its instance's lease has not
+                    // lapsed yet): ask again.
+                    tokio::time::sleep(Duration::from_millis(250)).await;
+                    continue;
+                }
+                Ok(a) => fleet
+                    .counts
+                    .bad(format!("upload {tag}: unexpected {} {}", a.status, a.body)),
+                Err(_) => unknown.push(tag),
+            }
+            break;
         }
         turn += 1;
         n += 1;
@@ -447,8 +537,19 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
         fleet_now.push(start(d.path(), Some(&db.url), &flags, &[]).await);
     }
     truecut::cli::client::install_crypto_provider();
+    // The load goes through the fleet's proxy (deploy/nginx.conf) when nginx is installed.
+    let upstreams = |f: &[Instance]| -> Vec<String> {
+        f.iter()
+            .map(|i| i.base.trim_start_matches("http://").to_string())
+            .collect()
+    };
+    let mut proxy = crate::proxy::Proxy::start(&upstreams(&fleet_now));
+    let bases: Vec<String> = match &proxy {
+        Some(p) => vec![p.base.clone()],
+        None => fleet_now.iter().map(|i| i.base.clone()).collect(),
+    };
     let fleet = Arc::new(Fleet {
-        bases: RwLock::new(fleet_now.iter().map(|i| i.base.clone()).collect()),
+        bases: RwLock::new(bases),
         counts: Counts::default(),
         client: reqwest::Client::new(),
         stop: AtomicBool::new(false),
@@ -540,8 +641,10 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
     };
 
     // The load.
+    // Client 0 names its uploads; clients 1 and 2 leave the naming to the service and send
+    // an Idempotency-Key, as a client without ids of its own retries safely.
     let uploads: Vec<_> = (0..3)
-        .map(|c| tokio::spawn(upload_client(fleet.clone(), c)))
+        .map(|c| tokio::spawn(upload_client(fleet.clone(), c, c != 0)))
         .collect();
     let jobs: Vec<_> = (0..2)
         .map(|c| tokio::spawn(job_client(fleet.clone(), c, bodies.clone())))
@@ -587,8 +690,12 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
                 "{:>5.1} s: killed instance {slot} with SIGKILL and started it again",
                 t0.elapsed().as_secs_f64()
             );
-            fleet.bases.write().unwrap()[slot] = fresh.base.clone();
+            let fresh_base = fresh.base.clone();
             fleet_now.insert(slot, fresh);
+            match proxy.as_mut() {
+                Some(p) => p.point_at(&upstreams(&fleet_now)),
+                None => fleet.bases.write().unwrap()[slot] = fresh_base,
+            }
         }
     }
     let faults_took = t0.elapsed();
@@ -631,17 +738,22 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
         .fetch_all(&mut conn)
         .await
         .unwrap();
-    let mut stored: HashMap<String, u32> = HashMap::new();
+    // Upload tag → the ids of the rows holding its content: more than one is a duplicate.
+    let mut stored: HashMap<String, Vec<String>> = HashMap::new();
     let mut wrong_content = 0;
     for r in &rows {
         let id: String = r.get(0);
         let blob: Vec<u8> = r.get(1);
-        let (c, n) = id[1..].split_once('-').unwrap();
-        let want = deviations(c.parse().unwrap(), n.parse().unwrap());
         let got: Vec<f64> = blob
             .chunks_exact(8)
             .map(|b| f64::from_le_bytes(b.try_into().unwrap()))
             .collect();
+        let (c, n) = got.first().map_or((usize::MAX, 0), |&f| upload_of(f));
+        if c >= 3 || n >= MAX_UPLOADS {
+            wrong_content += 1;
+            continue;
+        }
+        let want = deviations(c, n);
         // Bit for bit: the service parses JSON numbers correctly rounded (serde_json's
         // float_roundtrip), so what the client sent is what is stored.
         if got.len() != want.len()
@@ -652,12 +764,19 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
         {
             wrong_content += 1;
         }
-        *stored.entry(id).or_default() += 1;
+        stored.entry(format!("c{c}-{n}")).or_default().push(id);
     }
-    let lost = acked.iter().filter(|id| !stored.contains_key(*id)).count();
-    let duplicated = stored.values().filter(|n| **n > 1).count();
-    let acked_set: BTreeSet<&String> = acked.iter().collect();
-    let stored_unacked = stored.keys().filter(|id| !acked_set.contains(id)).count();
+    let lost = acked
+        .iter()
+        .filter(|(tag, id)| !stored.get(tag).is_some_and(|ids| ids.contains(id)))
+        .count();
+    let duplicated = stored.values().filter(|ids| ids.len() > 1).count();
+    let keyed_acked = acked
+        .iter()
+        .filter(|(tag, _)| !tag.starts_with("c0-"))
+        .count();
+    let acked_set: BTreeSet<&String> = acked.iter().map(|(tag, _)| tag).collect();
+    let stored_unacked = stored.keys().filter(|t| !acked_set.contains(t)).count();
     let mut served = Vec::new();
     for inst in &fleet_now {
         let (st, list) = inst.get("/v1/machines/m/surfaces/s/measurements").await;
@@ -670,7 +789,7 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
             .collect();
         served.push(ids);
     }
-    let db_ids: BTreeSet<String> = stored.keys().cloned().collect();
+    let db_ids: BTreeSet<String> = stored.values().flatten().cloned().collect();
     let instances_disagree = served.iter().filter(|s| **s != db_ids).count();
 
     // ---- jobs: each ended done once, with the reference's bits; none ran twice live ----
@@ -729,7 +848,15 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
         faults_took.as_secs_f64()
     );
     println!(
-        "  uploads: {} acknowledged, {} lost, {} duplicated, {} stored with other content, {} \
+        "  through: {}",
+        match &proxy {
+            Some(p) => format!("nginx with deploy/nginx.conf at {}", p.base),
+            None => "no proxy (nginx not installed): the clients spread the requests".into(),
+        }
+    );
+    println!(
+        "  uploads: {} acknowledged ({keyed_acked} without an id, under an Idempotency-Key), \
+         {} lost, {} duplicated (one upload stored twice), {} stored with other content, {} \
          stored without an answer to the client, {} never answered; {} of 3 instances serve \
          other rows than the database holds",
         acked.len(),
@@ -776,6 +903,14 @@ async fn three_instances_ride_out_kill9_and_connection_cuts() {
         && reruns_live.is_empty()
         && bad.is_empty();
     if !ok {
+        if let Some(p) = &proxy {
+            let log = p.error_log();
+            let tail: Vec<&str> = log.lines().rev().take(20).collect();
+            println!("--- nginx error log tail ---");
+            for l in tail.iter().rev() {
+                println!("{l}");
+            }
+        }
         for (i, inst) in fleet_now.iter().enumerate() {
             let log = inst.log();
             let tail: Vec<&str> = log.lines().rev().take(30).collect();

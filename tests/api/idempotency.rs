@@ -369,9 +369,12 @@ async fn keys_are_pruned(app: TestApp) {
         store.prune_idempotency_keys(Duration::ZERO).await.unwrap(),
         1
     );
-    // Pruned, the key is new again: a second record.
+    // Pruned, the key is free again; the upload it keys still takes the key's id, so the
+    // same body meets the first record (a replay by the insert), never a twin.
     let again = keyed(&app, UPLOADS, "old", &body, false).await;
-    assert_eq!((again.0, again.1), (201, false));
+    assert_eq!((again.0, again.1), (201, true), "{}", again.3);
+    let list: Value = app.get(UPLOADS).await.json().await.unwrap();
+    assert_eq!(list["measurements"].as_array().unwrap().len(), 1, "{list}");
 }
 on_both_backends!(keys_are_pruned);
 
@@ -443,3 +446,68 @@ async fn keys_are_scoped_per_token(mut app: TestApp) {
 }
 on_both_backends!(keys_are_scoped_per_token, |c| c.tokens =
     Some("a-tok admin, w-tok write".into()));
+
+/// The first try of a keyed request committed its record and then its instance died (kill
+/// -9) before keeping the answer: the key stays claimed by the dead instance. Simulated by
+/// handing the kept claim back to a gone instance's name. The retry takes the key over at
+/// once (not 409 for an hour) and meets what the first try stored: one measurement, one
+/// job. A claim of a live instance (this one) still answers 409.
+async fn a_dead_holders_key_is_taken_over_without_a_twin(app: TestApp) {
+    seed_machine_and_surface(&app, "m", "s", 4, 3).await;
+    let store = app.server().state().store.clone();
+    let hand_back = |key: &'static str, holder: String| {
+        let store = store.clone();
+        async move {
+            let n = sqlx::query(
+                "UPDATE idempotency_keys SET claim = $1, status = NULL, fingerprint = NULL, \
+                 headers = NULL, body = NULL WHERE key = $2",
+            )
+            .bind(holder)
+            .bind(key)
+            .execute(store.pool())
+            .await
+            .unwrap()
+            .rows_affected();
+            assert_eq!(n, 1);
+        }
+    };
+    let gone = "0190a000-0000-7000-8000-000000000000/first-try".to_string();
+    let live = format!("{}/first-try", store.instance());
+
+    let body = json!({"deviations": devs(9)});
+    let first = keyed(&app, UPLOADS, "dead-1", &body, false).await;
+    assert_eq!(first.0, 201, "{}", first.3);
+    let id = serde_json::from_str::<Value>(&first.3).unwrap()["id"].clone();
+    hand_back("dead-1", live.clone()).await;
+    let held = keyed(&app, UPLOADS, "dead-1", &body, false).await;
+    assert_eq!(held.0, 409, "a live holder keeps its key: {}", held.3);
+    hand_back("dead-1", gone.clone()).await;
+    let retry = keyed(&app, UPLOADS, "dead-1", &body, false).await;
+    assert_eq!(retry.0, 201, "{}", retry.3);
+    assert_eq!(
+        serde_json::from_str::<Value>(&retry.3).unwrap()["id"],
+        id,
+        "the retry meets the first try's record"
+    );
+    let list: Value = app.get(UPLOADS).await.json().await.unwrap();
+    assert_eq!(list["measurements"].as_array().unwrap().len(), 1, "{list}");
+    // The key keeps the retry's answer: a third try is a plain replay.
+    let third = keyed(&app, UPLOADS, "dead-1", &body, false).await;
+    assert_eq!((third.0, third.1), (201, true), "{}", third.3);
+
+    let signal: Vec<f64> = (0..300).map(|i| (i as f64 * 0.07).sin() * 1e-3).collect();
+    let body = json!({"signal": signal});
+    let first = keyed(&app, "/v1/decompose", "dead-job", &body, true).await;
+    assert_eq!(first.0, 202, "{}", first.3);
+    hand_back("dead-job", gone).await;
+    let retry = keyed(&app, "/v1/decompose", "dead-job", &body, true).await;
+    assert_eq!((retry.0, &retry.3), (202, &first.3), "the same job");
+    let job = serde_json::from_str::<Value>(&first.3).unwrap()["job"]
+        .as_str()
+        .unwrap()
+        .to_string();
+    app.wait_job(&job).await;
+    let jobs: Value = app.get("/v1/jobs").await.json().await.unwrap();
+    assert_eq!(jobs["jobs"].as_array().unwrap().len(), 1, "one job: {jobs}");
+}
+on_both_backends!(a_dead_holders_key_is_taken_over_without_a_twin);

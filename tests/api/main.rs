@@ -31,6 +31,7 @@ mod jobs_cancel;
 mod jobs_models;
 mod jobs_storage;
 mod observability;
+mod proxy;
 mod resources;
 mod scale_out;
 mod service;
