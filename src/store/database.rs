@@ -12,6 +12,7 @@ use sqlx::any::AnyPoolOptions;
 use sqlx::migrate::{Migration, MigrationType, Migrator};
 use sqlx::{Executor, SqlSafeStr};
 
+use super::connect_error::{Attempt, ConnectError, check_tls_files, classify};
 use super::instances::LeaseState;
 use super::models::ModelStore;
 
@@ -217,7 +218,9 @@ impl Store {
     /// Like [`Store::open`], retrying the first connection for up to `wait` (every second)
     /// while the database does not answer: an instance started beside its database (a
     /// compose file) waits for it instead of exiting. A database that answers with an
-    /// error (bad password, unknown database) fails at once.
+    /// error (bad password, unknown database) fails at once, and so does TLS that cannot be
+    /// set up (a certificate refused, a server without TLS, a certificate file that cannot be
+    /// read): [`ConnectError`] says what to check (`connect_error.rs`).
     ///
     /// On PostgreSQL, models saved before migration 0003 (files in this instance's data
     /// dir) are copied into the database ([`ModelStore::copy_files_into_database`]).
@@ -245,34 +248,31 @@ impl Store {
         sqlx::any::install_default_drivers();
         let idx = usize::from(backend == Backend::Postgres);
         let deadline = Instant::now() + wait;
+        let shown = redact(&url);
+        if backend == Backend::Postgres {
+            check_tls_files(&url, &shown)?;
+        }
         let db = loop {
             match pool_options(backend, POOL_MAX[idx], Duration::from_secs(30))
                 .connect(&url)
                 .await
             {
                 Ok(db) => break db,
-                Err(e) if Instant::now() < deadline && is_unreachable(&e) => {
-                    tracing::warn!(
-                        "the database ({}) does not answer yet, retrying: {e}",
-                        redact(&url)
-                    );
+                Err(e) if Instant::now() < deadline && classify(&e) == Attempt::Unreachable => {
+                    tracing::warn!("the database ({shown}) does not answer yet, retrying: {e}");
                     tokio::time::sleep(Duration::from_secs(1)).await;
                 }
-                Err(e) => {
-                    return Err(e).with_context(|| {
-                        format!("cannot connect to the database ({})", redact(&url))
-                    });
-                }
+                Err(e) => return Err(connect_failure(e, &shown)),
             }
         };
         let hb_db = pool_options(backend, 1, Duration::from_secs(5))
             .connect(&url)
             .await
-            .with_context(|| format!("cannot connect to the database ({})", redact(&url)))?;
+            .map_err(|e| connect_failure(e, &shown))?;
         let reap_db = pool_options(backend, 1, Duration::from_secs(5))
             .connect(&url)
             .await
-            .with_context(|| format!("cannot connect to the database ({})", redact(&url)))?;
+            .map_err(|e| connect_failure(e, &shown))?;
         migrator(backend)
             .run(&db)
             .await
@@ -400,11 +400,20 @@ pub(crate) fn now_sql(backend: Backend) -> &'static str {
     }
 }
 
-/// True for connection errors that a database still starting gives (refused, reset, name
-/// not resolved yet, timed out), worth retrying; false for answers such as a bad password.
-fn is_unreachable(e: &sqlx::Error) -> bool {
-    matches!(e, sqlx::Error::Io(_) | sqlx::Error::PoolTimedOut)
-        || matches!(e, sqlx::Error::Database(d) if d.code().is_some_and(|c| c == "57P03"))
+/// The error of a failed first connection: a TLS failure as [`ConnectError::Tls`] (its
+/// sentence says what to check), anything else with the database named.
+fn connect_failure(e: sqlx::Error, shown_url: &str) -> anyhow::Error {
+    match classify(&e) {
+        Attempt::Tls(problem) => ConnectError::Tls {
+            url: shown_url.to_string(),
+            problem,
+            source: e,
+        }
+        .into(),
+        Attempt::Unreachable | Attempt::Refused => {
+            anyhow::Error::new(e).context(format!("cannot connect to the database ({shown_url})"))
+        }
+    }
 }
 
 /// Hides a password in a database URL for error messages.

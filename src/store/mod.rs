@@ -9,6 +9,7 @@
 //! the database keep leases in `instances` (`instances.rs`).
 
 mod codec;
+mod connect_error;
 mod database;
 mod docs;
 mod idempotency;
@@ -27,6 +28,7 @@ mod surface_cache;
 mod surfaces;
 
 pub use codec::{decode_f64s, decode_points, encode_f64s, encode_points};
+pub use connect_error::{ConnectError, TlsProblem};
 pub use database::{Backend, DatabaseReport, PoolReport, Store};
 pub use idempotency::{Claim, IDEMPOTENCY_KEEP, IN_FLIGHT_STALE, KeptAnswer};
 pub use instances::{LeaseReport, Reaped};

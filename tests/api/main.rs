@@ -1,5 +1,6 @@
 //! The HTTP end-to-end suites as one test binary (one link instead of ten). Each module
-//! except `step_network` (the network on the study's surfaces) boots the real server
+//! except `step_network` (the network on the study's surfaces) and `pg_tls` (the store and
+//! the binary against the TLS-only cluster of `.ci/pg_tls.sh`) boots the real server
 //! through `helpers::spawn_app`, most on both backends with `on_both_backends!` (the
 //! PostgreSQL variants print SKIPPED without `TRUECUT_TEST_PG`). Run one suite with
 //! `cargo test --test api contour::`.
@@ -31,6 +32,7 @@ mod jobs_cancel;
 mod jobs_models;
 mod jobs_storage;
 mod observability;
+mod pg_tls;
 mod proxy;
 mod resources;
 mod scale_out;

@@ -278,12 +278,27 @@ pub(crate) fn start_binary_logging(
     String,
     std::sync::Arc<std::sync::Mutex<Vec<String>>>,
 ) {
+    start_binary_env(args, log, &[])
+}
+
+/// [`start_binary_logging`] with the environment variables `env` set (after `DATABASE_URL`,
+/// `TRUECUT_TOKENS` and `TRUECUT_LOG_FORMAT` are removed, so `env` may set them).
+pub(crate) fn start_binary_env(
+    args: &[&str],
+    log: &str,
+    env: &[(&str, &str)],
+) -> (
+    std::process::Child,
+    String,
+    std::sync::Arc<std::sync::Mutex<Vec<String>>>,
+) {
     let mut child = Command::new(env!("CARGO_BIN_EXE_truecut"))
         .args(args)
         .env_remove("DATABASE_URL")
         .env_remove("TRUECUT_TOKENS")
         .env_remove("TRUECUT_LOG_FORMAT")
         .env("RUST_LOG", log)
+        .envs(env.iter().copied())
         .stderr(Stdio::piped())
         .stdout(Stdio::null())
         .spawn()
