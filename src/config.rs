@@ -1,7 +1,7 @@
 //! Service configuration: command-line flags and environment variables, one struct.
 
 use std::net::SocketAddr;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::time::Duration;
 
 /// Default request body limit: 128 MiB. A 250,000-point JSON upload is about 15 MiB and a
@@ -26,11 +26,24 @@ pub struct Config {
     #[arg(long, env = "DATABASE_URL")]
     pub database_url: Option<String>,
 
+    /// Database password, for a `postgres://USER@HOST/DB` URL that holds none: a file whose
+    /// text (a trailing newline dropped) is the password, read once at start and put into
+    /// the URL, so the secret is neither in the environment nor on the command line
+    /// (compose.yaml's generated secrets, an orchestrator's secret files).
+    #[arg(long, env = "TRUECUT_DATABASE_PASSWORD_FILE")]
+    pub database_password_file: Option<PathBuf>,
+
     /// Tokens: a file with lines `TOKEN ROLE` (role read, write or admin), or the same
     /// entries inline separated by commas or newlines (e.g. `s3cret admin,r3ad read`).
     /// Without tokens the service binds loopback only and treats every request as admin.
     #[arg(long, env = "TRUECUT_TOKENS")]
     pub tokens: Option<String>,
+
+    /// Tokens from a file only (lines `TOKEN ROLE`), read once at start: unlike --tokens, a
+    /// missing or unreadable file stops the start with a sentence instead of being read as
+    /// inline entries. Not together with --tokens.
+    #[arg(long, env = "TRUECUT_TOKENS_FILE", conflicts_with = "tokens")]
+    pub tokens_file: Option<PathBuf>,
 
     /// POST requests (computations) each read token may have in flight at once; more answer
     /// 429 with Retry-After. Write and admin tokens are bounded by the worker pool only.
@@ -219,7 +232,9 @@ impl Config {
             addr,
             data_dir,
             database_url: None,
+            database_password_file: None,
             tokens: None,
+            tokens_file: None,
             read_token_concurrency: 1,
             demo: false,
             workers: None,
@@ -239,6 +254,25 @@ impl Config {
         }
     }
 
+    /// The URL to connect to the database with: `--database-url` with the password of
+    /// `--database-password-file` put in (the file is read now). `None`: SQLite in the data
+    /// dir.
+    pub fn database_url_with_password(&self) -> Result<Option<String>, ConfigError> {
+        database_url_with_password(
+            self.database_url.as_deref(),
+            self.database_password_file.as_deref(),
+        )
+    }
+
+    /// The tokens setting to load: `--tokens` as given (a file's path or inline entries),
+    /// or the text of `--tokens-file` (read now). `None`: no tokens.
+    pub fn tokens_text(&self) -> Result<Option<String>, ConfigError> {
+        match (&self.tokens_file, &self.tokens) {
+            (Some(path), _) => read_secret_file(path, "tokens").map(Some),
+            (None, spec) => Ok(spec.clone()),
+        }
+    }
+
     /// Number of worker threads to use.
     pub fn worker_count(&self) -> usize {
         self.workers
@@ -246,3 +280,128 @@ impl Config {
             .max(1)
     }
 }
+
+/// A setting that names a file (a secret) that cannot be used.
+#[derive(Debug, thiserror::Error)]
+#[non_exhaustive]
+pub enum ConfigError {
+    /// The file cannot be read (missing, no permission, not UTF-8).
+    #[error(
+        "cannot read the {what} file {}: {source}; check the path and that the service's \
+         user may read it",
+        path.display()
+    )]
+    Unreadable {
+        /// What the file holds (`tokens`, `database password`).
+        what: &'static str,
+        /// The file named.
+        path: PathBuf,
+        /// Why it cannot be read.
+        #[source]
+        source: std::io::Error,
+    },
+    /// The file holds nothing but line ends.
+    #[error(
+        "the {what} file {} is empty; write the {what} into it (a trailing newline is ignored)",
+        path.display()
+    )]
+    Empty {
+        /// What the file should hold.
+        what: &'static str,
+        /// The file named.
+        path: PathBuf,
+    },
+    /// A password file without a PostgreSQL URL to put it into.
+    #[error(
+        "--database-password-file (TRUECUT_DATABASE_PASSWORD_FILE) needs --database-url \
+         (DATABASE_URL) of PostgreSQL naming the user, e.g. postgres://truecut@db:5432/truecut \
+         (SQLite has no password)"
+    )]
+    PasswordWithoutPostgres,
+    /// The URL names no user for the password.
+    #[error(
+        "the database URL names no user for the password of --database-password-file: write \
+         postgres://USER@HOST/DATABASE"
+    )]
+    NoUser,
+    /// The URL holds a password already.
+    #[error(
+        "the database URL holds a password and --database-password-file gives one too: drop \
+         the password from the URL (postgres://USER@HOST/DATABASE)"
+    )]
+    PasswordTwice,
+}
+
+/// Reads a secret from `path`: the file's text without its trailing line ends (`\n`,
+/// `\r\n`); `what` names it in errors. An empty secret is an error.
+pub fn read_secret_file(path: &Path, what: &'static str) -> Result<String, ConfigError> {
+    let text = std::fs::read_to_string(path).map_err(|source| ConfigError::Unreadable {
+        what,
+        path: path.to_path_buf(),
+        source,
+    })?;
+    let secret = text.trim_end_matches(['\n', '\r']);
+    if secret.is_empty() {
+        return Err(ConfigError::Empty {
+            what,
+            path: path.to_path_buf(),
+        });
+    }
+    Ok(secret.to_string())
+}
+
+/// `url` with the password read from `password_file` put in as the user's password
+/// (percent-encoded), or `url` unchanged without a file. The URL must be PostgreSQL's and
+/// name a user but no password.
+pub fn database_url_with_password(
+    url: Option<&str>,
+    password_file: Option<&Path>,
+) -> Result<Option<String>, ConfigError> {
+    let Some(path) = password_file else {
+        return Ok(url.map(str::to_string));
+    };
+    let Some(url) = url else {
+        return Err(ConfigError::PasswordWithoutPostgres);
+    };
+    let password = read_secret_file(path, "database password")?;
+    insert_password(url, &password).map(Some)
+}
+
+/// Puts `password` into the user part of a `postgres://USER@HOST...` URL.
+pub fn insert_password(url: &str, password: &str) -> Result<String, ConfigError> {
+    let rest = url
+        .strip_prefix("postgres://")
+        .or_else(|| url.strip_prefix("postgresql://"))
+        .ok_or(ConfigError::PasswordWithoutPostgres)?;
+    let scheme = &url[..url.len() - rest.len()];
+    let authority_end = rest.find(['/', '?', '#']).unwrap_or(rest.len());
+    let (authority, tail) = rest.split_at(authority_end);
+    let (user, host) = authority.rsplit_once('@').ok_or(ConfigError::NoUser)?;
+    if user.is_empty() {
+        return Err(ConfigError::NoUser);
+    }
+    if user.contains(':') {
+        return Err(ConfigError::PasswordTwice);
+    }
+    Ok(format!(
+        "{scheme}{user}:{}@{host}{tail}",
+        percent_encode(password)
+    ))
+}
+
+/// RFC 3986 percent-encoding of every byte but the unreserved characters (`A-Z a-z 0-9 - .
+/// _ ~`): safe in a URL's user information whatever the password holds.
+fn percent_encode(text: &str) -> String {
+    let mut out = String::with_capacity(text.len());
+    for b in text.bytes() {
+        if b.is_ascii_alphanumeric() || matches!(b, b'-' | b'.' | b'_' | b'~') {
+            out.push(char::from(b));
+        } else {
+            out.push_str(&format!("%{b:02X}"));
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests;

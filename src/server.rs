@@ -31,16 +31,25 @@ pub struct Server {
 /// Loads the tokens a configuration names and enforces the loopback rule:
 /// without tokens only a loopback address may be bound.
 pub fn load_tokens(config: &Config) -> Result<Tokens> {
-    let tokens = match &config.tokens {
-        Some(spec) => {
-            Tokens::load(spec)?.with_read_limit(usize::from(config.read_token_concurrency))
+    let tokens = match (&config.tokens_file, config.tokens_text()?) {
+        (Some(path), Some(text)) => Tokens::parse(&text)
+            .and_then(|t| {
+                if t.is_empty() {
+                    bail!("it holds no `TOKEN ROLE` entry");
+                }
+                Ok(t)
+            })
+            .with_context(|| format!("the tokens file {}", path.display()))?
+            .with_read_limit(usize::from(config.read_token_concurrency)),
+        (None, Some(spec)) => {
+            Tokens::load(&spec)?.with_read_limit(usize::from(config.read_token_concurrency))
         }
-        None => Tokens::default(),
+        (_, None) => Tokens::default(),
     };
     if tokens.is_empty() && !config.addr.ip().is_loopback() {
         bail!(
             "refusing to listen on {}: no tokens are configured, and without tokens every \
-             request is admin. Configure tokens (--tokens FILE or TRUECUT_TOKENS, lines \
+             request is admin. Configure tokens (--tokens FILE, --tokens-file or TRUECUT_TOKENS, lines \
              `TOKEN ROLE` with ROLE read|write|admin) or bind a loopback address such as 127.0.0.1",
             config.addr
         );
@@ -80,8 +89,8 @@ pub async fn start(config: &Config) -> Result<Server> {
             config.db_wait_s
         )
     })?;
-    let store =
-        Store::open_waiting(&config.data_dir, config.database_url.as_deref(), db_wait).await?;
+    let database_url = config.database_url_with_password()?;
+    let store = Store::open_waiting(&config.data_dir, database_url.as_deref(), db_wait).await?;
     let lease = Duration::try_from_secs_f64(config.lease_s)
         .ok()
         .filter(|d| *d >= Duration::from_millis(300))

@@ -12,6 +12,7 @@ pub mod demo;
 pub mod gap;
 pub mod iso;
 pub mod jobs;
+pub mod migrate;
 pub mod program;
 pub mod serve;
 pub mod step;
@@ -52,6 +53,13 @@ pub enum Command {
         after_help = "Example:\n  truecut serve --demo --addr 127.0.0.1:8080 --data-dir ./truecut-data"
     )]
     Serve(crate::config::Config),
+    /// Apply the database migrations of this release and print what was applied (the step
+    /// before a rolling upgrade; `serve` applies them too, and serves on a database a newer
+    /// release migrated).
+    #[command(
+        after_help = "Example:\n  truecut migrate --database-url postgres://truecut@db/truecut --database-password-file /run/secrets/db-password"
+    )]
+    Migrate(migrate::Args),
     /// Predict the contour error of a G-code program on a machine (machine JSON file or stored id).
     #[command(
         after_help = "Example:\n  truecut contour part.nc --machine machine.json --output answer.json"
@@ -93,6 +101,7 @@ pub enum Command {
 pub fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.command {
         Command::Serve(config) => serve::run(config),
+        Command::Migrate(a) => migrate::run(a),
         Command::Contour(a) => contour::run(a),
         Command::Decompose(a) => decompose::run(a),
         Command::Gap(a) => gap::run(a),

@@ -14,6 +14,7 @@ use sqlx::{Executor, SqlSafeStr};
 
 use super::connect_error::{Attempt, ConnectError, check_tls_files, classify};
 use super::instances::LeaseState;
+use super::migrations::MigrationReport;
 use super::models::ModelStore;
 
 /// Which database holds the records.
@@ -59,7 +60,8 @@ pub(crate) fn now_ms() -> i64 {
         .map_or(0, |d| i64::try_from(d.as_millis()).unwrap_or(i64::MAX))
 }
 
-fn migrator(backend: Backend) -> Migrator {
+/// Every migration of `backend`, in order; [`super::migrations`] applies them.
+pub(crate) fn migrator(backend: Backend) -> Migrator {
     let scripts: [(i64, &'static str, &'static str); 7] = match backend {
         Backend::Sqlite => [
             (
@@ -231,40 +233,10 @@ impl Store {
     ) -> Result<Store> {
         std::fs::create_dir_all(data_dir)
             .with_context(|| format!("cannot create data dir {}", data_dir.display()))?;
-        let url = match database_url {
-            Some(u) => u.to_string(),
-            None => format!(
-                "sqlite://{}?mode=rwc",
-                data_dir.join("truecut.db").display()
-            ),
-        };
-        let backend = if url.starts_with("sqlite:") {
-            Backend::Sqlite
-        } else if url.starts_with("postgres://") || url.starts_with("postgresql://") {
-            Backend::Postgres
-        } else {
-            bail!("database URL must start with sqlite: or postgres:// (got '{url}')");
-        };
-        sqlx::any::install_default_drivers();
+        let (url, backend) = resolve_url(data_dir, database_url)?;
         let idx = usize::from(backend == Backend::Postgres);
-        let deadline = Instant::now() + wait;
         let shown = redact(&url);
-        if backend == Backend::Postgres {
-            check_tls_files(&url, &shown)?;
-        }
-        let db = loop {
-            match pool_options(backend, POOL_MAX[idx], Duration::from_secs(30))
-                .connect(&url)
-                .await
-            {
-                Ok(db) => break db,
-                Err(e) if Instant::now() < deadline && classify(&e) == Attempt::Unreachable => {
-                    tracing::warn!("the database ({shown}) does not answer yet, retrying: {e}");
-                    tokio::time::sleep(Duration::from_secs(1)).await;
-                }
-                Err(e) => return Err(connect_failure(e, &shown)),
-            }
-        };
+        let db = connect_waiting(&url, backend, POOL_MAX[idx], wait).await?;
         let hb_db = pool_options(backend, 1, Duration::from_secs(5))
             .connect(&url)
             .await
@@ -273,10 +245,19 @@ impl Store {
             .connect(&url)
             .await
             .map_err(|e| connect_failure(e, &shown))?;
-        migrator(backend)
-            .run(&db)
-            .await
-            .context("database migration failed")?;
+        let migrated = super::migrations::apply(&db, backend).await?;
+        if !migrated.applied.is_empty() {
+            tracing::info!(applied = ?migrated.applied, "applied database migrations");
+        }
+        if !migrated.unknown.is_empty() {
+            tracing::warn!(
+                unknown = ?migrated.unknown,
+                latest_known = migrated.latest_known,
+                "the database holds migrations this release does not know (a newer release \
+                 migrated it, as in a rolling upgrade); serving on: a release's migrations keep \
+                 the release before it working"
+            );
+        }
         let instance = uuid::Uuid::now_v7().to_string();
         let models = ModelStore::new(
             data_dir.join("models"),
@@ -389,6 +370,75 @@ impl Store {
         self.db.close().await;
         self.hb_db.close().await;
         self.reap_db.close().await;
+    }
+}
+
+/// Applies this build's migrations to the database (the same `database_url` and data dir as
+/// [`Store::open`]) and reports what it applied and which newer versions it left alone,
+/// without opening a store (no data-dir sweep, no model copy, no instance): `truecut migrate`,
+/// the step before a rolling upgrade. Waits up to `wait` for a database that does not answer
+/// yet, as [`Store::open_waiting`] does.
+pub async fn migrate(
+    data_dir: &Path,
+    database_url: Option<&str>,
+    wait: Duration,
+) -> Result<MigrationReport> {
+    if database_url.is_none() {
+        std::fs::create_dir_all(data_dir)
+            .with_context(|| format!("cannot create data dir {}", data_dir.display()))?;
+    }
+    let (url, backend) = resolve_url(data_dir, database_url)?;
+    let db = connect_waiting(&url, backend, 1, wait).await?;
+    let report = super::migrations::apply(&db, backend).await;
+    db.close().await;
+    report
+}
+
+/// The URL to connect to (`None`: SQLite file `truecut.db` in `data_dir`) and its backend.
+fn resolve_url(data_dir: &Path, database_url: Option<&str>) -> Result<(String, Backend)> {
+    let url = match database_url {
+        Some(u) => u.to_string(),
+        None => format!(
+            "sqlite://{}?mode=rwc",
+            data_dir.join("truecut.db").display()
+        ),
+    };
+    let backend = if url.starts_with("sqlite:") {
+        Backend::Sqlite
+    } else if url.starts_with("postgres://") || url.starts_with("postgresql://") {
+        Backend::Postgres
+    } else {
+        bail!(
+            "database URL must start with sqlite: or postgres:// (got '{}')",
+            redact(&url)
+        );
+    };
+    sqlx::any::install_default_drivers();
+    Ok((url, backend))
+}
+
+/// A pool of at most `max` connections to `url`, retrying the first connection every second
+/// for up to `wait` while the database does not answer (refused, unresolved, starting up);
+/// an answer such as a bad password fails at once, and so does TLS that cannot be set up
+/// ([`ConnectError`]).
+async fn connect_waiting(url: &str, backend: Backend, max: u32, wait: Duration) -> Result<AnyPool> {
+    let deadline = Instant::now() + wait;
+    let shown = redact(url);
+    if backend == Backend::Postgres {
+        check_tls_files(url, &shown)?;
+    }
+    loop {
+        match pool_options(backend, max, Duration::from_secs(30))
+            .connect(url)
+            .await
+        {
+            Ok(db) => return Ok(db),
+            Err(e) if Instant::now() < deadline && classify(&e) == Attempt::Unreachable => {
+                tracing::warn!("the database ({shown}) does not answer yet, retrying: {e}");
+                tokio::time::sleep(Duration::from_secs(1)).await;
+            }
+            Err(e) => return Err(connect_failure(e, &shown)),
+        }
     }
 }
 

@@ -21,6 +21,8 @@ mod decomposition;
 mod door;
 mod faults;
 mod fleet;
+mod fleet_files;
+mod fleet_start;
 mod gap;
 mod hardening;
 mod idempotency;
