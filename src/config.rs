@@ -287,8 +287,8 @@ impl Config {
 pub enum ConfigError {
     /// The file cannot be read (missing, no permission, not UTF-8).
     #[error(
-        "cannot read the {what} file {}: {source}; check the path and that the service's \
-         user may read it",
+        "cannot read the {what} file {} (check the path and that the service's user may \
+         read it)",
         path.display()
     )]
     Unreadable {

@@ -121,6 +121,11 @@ fn an_empty_or_missing_secret_file_is_a_sentence() {
             && text.contains("may read it"),
         "{text}"
     );
+    // the cause is the error's source (shown once in a chain), not a part of its sentence
+    assert!(
+        std::error::Error::source(&err).is_some() && !text.contains("os error"),
+        "{text}"
+    );
 }
 
 #[test]
