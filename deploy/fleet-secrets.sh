@@ -27,7 +27,8 @@ pg_uid=$(id -u postgres)
 pg_gid=$(id -g postgres)
 umask 077
 
-random_secret() { od -An -N32 -tx1 /dev/urandom | tr -d ' \n'; }
+# one line (a reader drops the newline: truecut, the postgres entrypoint, psql)
+random_secret() { od -An -N32 -tx1 /dev/urandom | tr -d ' \n'; echo; }
 
 # put FILE OWNER:GROUP MODE: content from stdin, replacing FILE atomically
 put() {
