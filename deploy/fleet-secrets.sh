@@ -14,8 +14,8 @@
 # missing or empty: there is no default anyone could know. Each file is readable by the one
 # user that needs it (uid 10001 is truecut's, Dockerfile).
 #
-# `tokens` is written again on every start: the admin token, and a `write` token for
-# ../shared/tools/compose-check only when TRUECUT_CHECK_TOKEN is set in the environment of
+# `tokens` is written again on every start: the admin token, and an `admin` token for
+# ../shared/tools/compose-check (it PUTs a machine, which needs admin) only when TRUECUT_CHECK_TOKEN is set in the environment of
 # `up` (compose.yaml passes it; unset, the default, there is none, and a check token of an
 # earlier start is dropped).
 set -euo pipefail
@@ -27,7 +27,8 @@ pg_uid=$(id -u postgres)
 pg_gid=$(id -g postgres)
 umask 077
 
-random_secret() { od -An -N32 -tx1 /dev/urandom | tr -d ' \n'; }
+# one line (a reader drops the newline: truecut, the postgres entrypoint, psql)
+random_secret() { od -An -N32 -tx1 /dev/urandom | tr -d ' \n'; echo; }
 
 # put FILE OWNER:GROUP MODE: content from stdin, replacing FILE atomically
 put() {
@@ -67,11 +68,11 @@ fi
     echo "# written by deploy/fleet-secrets.sh at every start: TOKEN ROLE"
     printf '%s admin\n' "$(cat "$tc_dir/admin-token")"
     if [ -n "$check_token" ]; then
-        printf '%s write\n' "$check_token"
+        printf '%s admin\n' "$check_token"
     fi
 } | put "$tc_dir/tokens" "$truecut_uid:$truecut_uid" 0400
 if [ -n "$check_token" ]; then
-    echo "fleet-secrets: tokens: the admin token and the check token (TRUECUT_CHECK_TOKEN, role write)"
+    echo "fleet-secrets: tokens: the admin token and the check token (TRUECUT_CHECK_TOKEN, role admin)"
 else
     echo "fleet-secrets: tokens: the admin token"
 fi

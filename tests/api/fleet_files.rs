@@ -425,6 +425,40 @@ fn the_proxy_waits_for_healthy_instances() {
     assert_eq!(servers, instances.keys().cloned().collect::<Vec<_>>());
 }
 
+/// nginx resolves the upstream names once; an instance recreated (rolling upgrade) or
+/// restarted on another address must not drop out of the fleet for good.
+#[test]
+fn the_proxy_follows_instances_to_new_addresses() {
+    let doc = compose();
+    let proxy = &doc["services"]["proxy"];
+    assert_eq!(proxy["command"][1], "/fleet/proxy-start.sh", "{proxy:?}");
+    let mounts = serde_yaml::to_string(&proxy["volumes"]).unwrap();
+    assert!(
+        mounts.contains("./deploy/proxy-start.sh:/fleet/proxy-start.sh"),
+        "{mounts}"
+    );
+    let script = read("deploy/proxy-start.sh");
+    assert!(script.contains("nginx -s reload"), "it reloads nginx");
+    assert!(
+        script.contains("exec nginx -g 'daemon off;'"),
+        "nginx stays PID 1 (its graceful stop signal)"
+    );
+    // the names it watches are the upstream servers
+    let default_names = script
+        .lines()
+        .find_map(|l| l.strip_prefix("names=${TRUECUT_UPSTREAMS:-"))
+        .and_then(|l| l.strip_suffix('}'))
+        .expect("names=${TRUECUT_UPSTREAMS:-...}");
+    let watched: Vec<&str> = default_names.split_whitespace().collect();
+    assert_eq!(
+        watched,
+        instances(&doc)
+            .keys()
+            .map(String::as_str)
+            .collect::<Vec<_>>()
+    );
+}
+
 #[test]
 fn instances_get_their_shutdown_grace() {
     let grace = Duration::from_secs(
