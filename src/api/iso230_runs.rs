@@ -3,11 +3,11 @@
 //! `POST /v1/iso230-2`) and stores, `GET` lists the runs oldest first with their figures and
 //! the change from the first to the last, `GET .../iso230-2/{id}` answers one run in full.
 
-use axum::Router;
 use axum::extract::State;
 use axum::http::{StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use axum::routing::get;
+use axum::{Extension, Router};
 use serde_json::{Map, Value, json};
 
 use super::AppState;
@@ -15,6 +15,7 @@ use super::auth::RequireWrite;
 use super::error::{ApiError, ApiResult};
 use super::extract::ApiJson;
 use super::id::{Id, PathIds};
+use super::idempotency::KeyedId;
 use super::iso230::evaluate_2;
 use super::lookup::require_machine;
 use crate::store::Iso230Run;
@@ -101,6 +102,7 @@ fn full(machine: &Id, run: &Iso230Run) -> Value {
 async fn store_run(
     State(state): State<AppState>,
     _write: RequireWrite,
+    keyed: Option<Extension<KeyedId>>,
     PathIds([machine, axis]): PathIds<2>,
     ApiJson(mut req): ApiJson<Iso2302Request>,
 ) -> ApiResult<Response> {
@@ -123,7 +125,14 @@ async fn store_run(
     let answer = serde_json::to_value(&answer).map_err(ApiError::internal)?;
     let run = state
         .store
-        .put_iso230_run(&machine, &axis, label.as_deref(), &input, &answer)
+        .put_iso230_run(
+            &machine,
+            &axis,
+            keyed.as_ref().map(|k| k.0.0.as_str()),
+            label.as_deref(),
+            &input,
+            &answer,
+        )
         .await?;
     let location = format!("/v1/machines/{machine}/axes/{axis}/iso230-2/{}", run.id);
     Ok((

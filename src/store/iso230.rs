@@ -39,21 +39,26 @@ fn run_from_row(row: &sqlx::any::AnyRow) -> Result<Iso230Run> {
 const COLUMNS: &str = "id, axis, label, input, answer, created_at";
 
 impl Store {
-    /// Stores a run of `machine`'s `axis` under a new id; returns the stored run. The machine
-    /// must exist.
+    /// Stores a run of `machine`'s `axis`; returns the stored run. The machine must exist.
+    ///
+    /// `id`: `None` = a new id. `Some` (the id an `Idempotency-Key` derives, see
+    /// `api::idempotency::KeyedId`): a retry of a request whose first try stored its run
+    /// (and whose answer was lost with the instance that gave it) meets that run and returns
+    /// it, not a twin (`ON CONFLICT DO NOTHING`, then a read).
     pub async fn put_iso230_run(
         &self,
         machine: &str,
         axis: &str,
+        id: Option<&str>,
         label: Option<&str>,
         input: &serde_json::Value,
         answer: &serde_json::Value,
     ) -> Result<Iso230Run> {
-        let id = uuid::Uuid::now_v7().to_string();
+        let id = id.map_or_else(|| uuid::Uuid::now_v7().to_string(), str::to_string);
         let now = now_ms();
-        sqlx::query(
+        let inserted = sqlx::query(
             "INSERT INTO iso230_runs (machine, axis, id, label, input, answer, created_at) \
-             VALUES ($1, $2, $3, $4, $5, $6, $7)",
+             VALUES ($1, $2, $3, $4, $5, $6, $7) ON CONFLICT (machine, axis, id) DO NOTHING",
         )
         .bind(machine.to_string())
         .bind(axis.to_string())
@@ -64,7 +69,14 @@ impl Store {
         .bind(now)
         .execute(&self.db)
         .await
-        .with_context(|| format!("cannot store an ISO 230-2 run of {machine}/{axis}"))?;
+        .with_context(|| format!("cannot store an ISO 230-2 run of {machine}/{axis}"))?
+        .rows_affected();
+        if inserted == 0 {
+            return self
+                .get_iso230_run(machine, axis, &id)
+                .await?
+                .with_context(|| format!("ISO 230-2 run {id} of {machine}/{axis} vanished"));
+        }
         Ok(Iso230Run {
             id,
             axis: axis.to_string(),

@@ -952,7 +952,15 @@ async fn cut_blocked(lock: &mut sqlx::PgConnection, prefix: &str) -> u64 {
 }
 
 /// Like [`cut_blocked`]; the statements of the ended backends.
+///
+/// `lock` may be inside a transaction (it holds a table lock), where PostgreSQL reads
+/// `pg_stat_activity` once and keeps that snapshot to the transaction's end: a statement
+/// that began waiting after the first look would never be seen (the cause of a flaky
+/// "the insert never waited" on a loaded machine). The snapshot is dropped before each look.
 async fn cut_blocked_queries(lock: &mut sqlx::PgConnection, prefix: &str) -> Vec<String> {
+    lock.execute("SELECT pg_stat_clear_snapshot()")
+        .await
+        .unwrap();
     let rows = sqlx::query(
         "SELECT pg_terminate_backend(pid), query FROM pg_stat_activity \
          WHERE pid <> pg_backend_pid() AND pg_backend_pid() = ANY(pg_blocking_pids(pid)) \
@@ -990,11 +998,28 @@ async fn a_connection_cut_mid_upload_answers_503_and_the_retry_is_stored() {
     let t0 = Instant::now();
     let mut cut = 0;
     while cut == 0 {
-        assert!(
+        if request.is_finished() {
+            let r = request.await.unwrap();
+            let status = r.status();
+            panic!(
+                "the upload was answered before its insert waited on the lock: {status} {}",
+                r.text().await.unwrap_or_default()
+            );
+        }
+        if t0.elapsed() > Duration::from_secs(60) {
             // A loaded machine (CI on two cores) may take many seconds to reach the insert.
-            t0.elapsed() < Duration::from_secs(60),
-            "the insert never waited"
-        );
+            lock.execute("SELECT pg_stat_clear_snapshot()")
+                .await
+                .unwrap();
+            let waiting: Vec<(String, Option<String>, String)> = sqlx::query_as(
+                "SELECT state, wait_event_type, left(query, 120) FROM pg_stat_activity \
+                 WHERE datname = current_database() AND pid <> pg_backend_pid()",
+            )
+            .fetch_all(&mut lock)
+            .await
+            .unwrap();
+            panic!("the insert never waited in 60 s; the database's backends: {waiting:?}");
+        }
         tokio::time::sleep(Duration::from_millis(50)).await;
         cut += cut_blocked(&mut lock, "INSERT INTO measurements").await;
     }

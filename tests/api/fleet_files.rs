@@ -499,21 +499,59 @@ fn every_service_has_limits_and_rotated_logs() {
     }
 }
 
+/// The migrations of a rolling upgrade are a step of their own (deploy/migrate.yaml, added to
+/// the fleet with a second `-f`): the instances' image running `truecut migrate` on the
+/// instances' database, after the database is healthy. It is no service of compose.yaml,
+/// whose services of the built image are all instances (what a start runs and the proxy
+/// serves from, as compose-check counts them).
 #[test]
 fn migrations_run_as_their_own_step_before_the_instances() {
     let doc = compose();
-    let migrate = &doc["services"]["migrate"];
-    assert_eq!(migrate["image"], doc["services"]["truecut1"]["image"]);
+    assert!(
+        doc["services"].get("migrate").is_none(),
+        "migrate is no instance"
+    );
+    let mut step: Value = serde_yaml::from_str(&read("deploy/migrate.yaml")).unwrap();
+    step.apply_merge().unwrap();
+    let migrate = &step["services"]["migrate"];
+    let truecut1 = &doc["services"]["truecut1"];
+    assert_eq!(migrate["image"], truecut1["image"]);
     assert_eq!(migrate["command"][0], "migrate");
     assert_eq!(migrate["restart"], "no");
     assert_eq!(migrate["depends_on"]["db"]["condition"], "service_healthy");
-    let env = env_of(migrate);
-    assert!(env.contains_key("TRUECUT_DB_WAIT_S"), "{env:?}");
-    for (name, instance) in instances(&doc) {
-        assert_eq!(
-            instance["depends_on"]["migrate"]["condition"], "service_completed_successfully",
-            "{name}"
+    for dep in migrate["depends_on"].as_mapping().unwrap().keys() {
+        assert!(
+            doc["services"].get(dep).is_some(),
+            "{dep:?} is a service of compose.yaml"
         );
+    }
+    let env = env_of(migrate);
+    let instance_env = env_of(truecut1);
+    for key in ["DATABASE_URL", "TRUECUT_DATABASE_PASSWORD_FILE"] {
+        assert_eq!(env.get(key), instance_env.get(key), "{key}");
+    }
+    assert!(env.contains_key("TRUECUT_DB_WAIT_S"), "{env:?}");
+    for volume in migrate["volumes"].as_sequence().unwrap() {
+        let name = volume.as_str().unwrap().split(':').next().unwrap();
+        assert!(
+            doc["volumes"].get(name).is_some(),
+            "volume {name} of compose.yaml"
+        );
+    }
+    let limits = &migrate["deploy"]["resources"]["limits"];
+    assert!(limits["cpus"].is_string() && limits["memory"].is_string());
+    assert!(migrate["logging"]["options"]["max-size"].is_string());
+    let built = truecut1["image"].clone();
+    for (name, service) in services(&doc) {
+        if service["image"] == built {
+            assert!(
+                service.get("command").is_none(),
+                "{name} serves (no one-shot)"
+            );
+        }
+    }
+    for (name, instance) in instances(&doc) {
+        assert!(instance["depends_on"].get("migrate").is_none(), "{name}");
         // podman-compose ignores the conditions: the instances wait for the database
         let wait: f64 = env_of(&instance)["TRUECUT_DB_WAIT_S"].parse().unwrap();
         assert!(wait >= 60.0, "{name}: TRUECUT_DB_WAIT_S {wait}");

@@ -509,5 +509,24 @@ async fn a_dead_holders_key_is_taken_over_without_a_twin(app: TestApp) {
     app.wait_job(&job).await;
     let jobs: Value = app.get("/v1/jobs").await.json().await.unwrap();
     assert_eq!(jobs["jobs"].as_array().unwrap().len(), 1, "one job: {jobs}");
+
+    // An ISO 230-2 run stored under a key: the retry returns the first try's run.
+    let runs = "/v1/machines/m/axes/X/iso230-2";
+    let body = crate::iso230::hand_body(1.0);
+    let first = keyed(&app, runs, "dead-iso", &body, false).await;
+    assert_eq!(first.0, 201, "{}", first.3);
+    hand_back("dead-iso", gone_again()).await;
+    let retry = keyed(&app, runs, "dead-iso", &body, false).await;
+    assert_eq!(retry.0, 201, "{}", retry.3);
+    let id_of = |text: &str| serde_json::from_str::<Value>(text).unwrap()["id"].clone();
+    assert_eq!(id_of(&retry.3), id_of(&first.3), "the same run");
+    assert_eq!(retry.2, first.2, "the same Location");
+    let list: Value = app.get(runs).await.json().await.unwrap();
+    assert_eq!(list["runs"].as_array().unwrap().len(), 1, "one run: {list}");
 }
 on_both_backends!(a_dead_holders_key_is_taken_over_without_a_twin);
+
+/// A claim of an instance that no longer exists (no row in `instances`).
+fn gone_again() -> String {
+    "0190a000-0000-7000-8000-000000000001/first-try".to_string()
+}
