@@ -1,8 +1,8 @@
 //! `truecut migrate`: apply the database migrations of this release and say what was applied,
-//! the step a rolling upgrade takes before it replaces the instances (compose.yaml's `migrate`
-//! service). `serve` applies them too; running this first means no new instance changes the
-//! schema under old ones, and a migration that fails stops the upgrade before any instance
-//! is replaced.
+//! the step a rolling upgrade takes before it replaces the instances (the `migrate` service of
+//! deploy/migrate.yaml, added to compose.yaml's fleet). `serve` applies them too; running
+//! this first means no new instance changes the schema under old ones, and a migration that
+//! fails stops the upgrade before any instance is replaced.
 
 use std::io::Write;
 use std::path::PathBuf;

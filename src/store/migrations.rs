@@ -2,8 +2,8 @@
 //! `database.rs`), with a report of what was applied and of what the database holds that this
 //! build does not know.
 //!
-//! A rolling upgrade runs the new release's migrations first (`truecut migrate`, compose.yaml's
-//! `migrate` service), then replaces the instances one at a time. Meanwhile instances of the
+//! A rolling upgrade runs the new release's migrations first (`truecut migrate`, the `migrate`
+//! service of deploy/migrate.yaml), then replaces the instances one at a time. Meanwhile instances of the
 //! previous release (re)start on a database holding migrations they do not know; sqlx's
 //! migrator refuses that by default (`VersionMissing`), which would turn a restart during an
 //! upgrade into an outage. Here unknown versions are left alone and reported (`serve` logs a
