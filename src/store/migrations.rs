@@ -3,13 +3,13 @@
 //! build does not know.
 //!
 //! A rolling upgrade runs the new release's migrations first (`truecut migrate`, the `migrate`
-//! service of deploy/migrate.yaml), then replaces the instances one at a time. Meanwhile
-//! instances of the previous release (re)start on a database holding migrations they do not
-//! know; sqlx's migrator refuses that by default (`VersionMissing`), which would turn a restart
-//! during an upgrade into an outage. Here unknown versions are left alone and reported (`serve` logs a
-//! warning); a migration that failed half-way still stops the start. The other half of the
-//! bargain is on the migrations: each one keeps the previous release working (it adds tables
-//! and columns with defaults; removals wait for the release after).
+//! service of deploy/migrate.yaml), then replaces the instances one at a time. Meanwhile instances
+//! of the previous release (re)start on a database holding migrations they do not know; sqlx's
+//! migrator refuses that by default (`VersionMissing`), which would turn a restart during an
+//! upgrade into an outage. Here unknown versions are left alone and reported (`serve` logs a
+//! warning); a migration that failed half-way still stops the start. The other half of the bargain
+//! is on the migrations: each one keeps the previous release working (it adds tables and columns
+//! with defaults; removals wait for the release after).
 
 use std::collections::BTreeSet;
 
