@@ -266,7 +266,7 @@ pub fn numbered(text: &str) -> String {
 }
 
 /// Why rs274 cannot read even the original, or None.
-fn rs274_cannot(original: &str) -> Option<&'static str> {
+pub fn rs274_cannot(original: &str) -> Option<&'static str> {
     let g87 = original
         .lines()
         .flat_map(word_spans)
