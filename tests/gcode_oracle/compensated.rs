@@ -1,9 +1,11 @@
 //! A compensated program is still a valid program (issue 24, item 3): every program in
-//! `tests/data/programs` (the real posts and the held-out contours of `heldout/`) and one program per canned cycle truecut models (G73, G74, G81–G89,
-//! each with G99 and G98 holes between feed moves and rapids) is compensated as the
-//! `compensated-program` route does it — volumetric, contour, and both — and every answer
-//! goes through [`crate::valid::check`]: re-read by truecut's reader and by rs274, both must
-//! parse it, and every programmed point p is hit at p − e(p) within 1 µm.
+//! `tests/data/programs` (the real posts and the held-out contours of `heldout/`) and one
+//! program per canned cycle truecut models (G73, G74, G81–G89, each with G99 and G98 holes
+//! between feed moves and rapids) is compensated as the `compensated-program` route does it
+//! — volumetric, contour, and both — and every answer goes through [`crate::valid::check`]:
+//! re-read by truecut's reader and by rs274, both must parse it, and every programmed point
+//! p is hit at p − e(p) within 1 µm. The answers are computed once ([`answers`]) and shared
+//! with `crate::invariants`.
 //!
 //! The map is fitted (kinematic model) on a synthetic machine's measured grid, the contour
 //! machine is the cascade of the route's contour test; the programs run under G54 and tool

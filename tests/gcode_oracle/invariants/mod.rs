@@ -43,7 +43,9 @@
 //!
 //! Cases rs274 cannot read even as originals (G87: `valid::rs274_cannot`) are listed with
 //! the reason; a case with any violation fails the test. The table printed per program and
-//! mode gives the closing figures.
+//! mode gives the closing figures. Module `mutants` breaks answers by hand, one
+//! invariant each, and holds that every break is caught by its rule. Files: `check` (one
+//! case), `words` (the word rules), `mutants`.
 
 use std::path::Path;
 
@@ -187,15 +189,6 @@ struct Reading {
     dwells: Vec<(usize, f64)>,
 }
 
-/// Whether `text` ends its program (M2, M30 or a closing `%`).
-fn ends(text: &str) -> bool {
-    text.trim_end().ends_with('%')
-        || text
-            .lines()
-            .flat_map(word_spans)
-            .any(|w| w.letter == 'M' && matches!(w.value as i64, 2 | 30))
-}
-
 /// Runs rs274 on `text` (numbered, written as `dir/name.ngc`) with `table`, and takes its
 /// moves to the machine frame by `frames` (truecut's reading of `text`); `src` maps a line
 /// of `text` to the original's.
@@ -209,12 +202,7 @@ fn read(
     src: &dyn Fn(usize) -> usize,
 ) -> Result<Reading, String> {
     let file = dir.join(format!("{name}.ngc"));
-    let mut numbered = crate::valid::numbered(text);
-    if !ends(text) {
-        // rs274 refuses a file without a program end; the held-out contours have none.
-        numbered += "M2\n";
-    }
-    std::fs::write(&file, numbered).map_err(|e| e.to_string())?;
+    std::fs::write(&file, crate::valid::for_rs274(text)).map_err(|e| e.to_string())?;
     let (out, _) = rs274::printout(rs, &file, Some(table))?;
     let oracle = rs274::parse(&out)?;
     let shift = |line: usize| {
@@ -408,6 +396,7 @@ fn simulated_lows(
 }
 
 mod check;
+mod mutants;
 mod words;
 use check::check_case;
 
