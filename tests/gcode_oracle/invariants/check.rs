@@ -399,8 +399,10 @@ pub fn check_case(
                 v.push((
                     Rule::Band,
                     format!(
-                        "{:.2} µm beyond the band on the nominal model",
-                        nominal.compensated.gouge_mm * 1e3
+                        "{:.2} µm beyond the band on the nominal model; notes {:?}; answer:\n{}",
+                        nominal.compensated.gouge_mm * 1e3,
+                        p.notes,
+                        c.gcode
                     ),
                 ));
             }

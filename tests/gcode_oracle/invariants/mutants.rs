@@ -62,14 +62,15 @@ fn each_invariant_check_catches_its_break() {
             format!("{head}X{x:.4} Y{y:.4}{tail}")
         })
         .collect();
-    // N80 X0. of the pocket (line 11) cut into 200 pieces.
+    // N70 G1 Y30. of corners_finish (line 10, from Y15) cut into 200 pieces (not under
+    // G41, where rs274 would refuse the pieces before the budget is counted).
     let pieces: Vec<String> = (1..=200)
         .map(|k| {
-            let x = 30.0 - 30.0 * k as f64 / 200.0;
+            let y = 15.0 + 15.0 * k as f64 / 200.0;
             if k == 1 {
-                format!("N80 X{x:.4}")
+                format!("N70 G1 Y{y:.4}")
             } else {
-                format!("X{x:.4}")
+                format!("Y{y:.4}")
             }
         })
         .collect();
@@ -118,9 +119,9 @@ fn each_invariant_check_catches_its_break() {
         ),
         (
             "a move cut into 200",
-            &pocket,
+            &corners,
             Rule::Budget,
-            mutate(&pocket, 11, &pieces),
+            mutate(&corners, 10, &pieces),
         ),
     ];
     let mut options = ReadOptions::default();
