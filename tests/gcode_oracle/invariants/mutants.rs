@@ -15,7 +15,7 @@ use crate::rs274;
 
 /// `text` with line `line` (1-based) replaced by `with` (each from source line `line`), and
 /// the source line of every line.
-fn mutate(text: &str, line: usize, with: &[String]) -> (String, Vec<usize>) {
+fn mutate(text: &str, line: usize, with: &[String]) -> Broken {
     let (mut out, mut src) = (String::new(), Vec::new());
     for (i, raw) in text.lines().enumerate() {
         if i + 1 == line {
@@ -32,6 +32,9 @@ fn mutate(text: &str, line: usize, with: &[String]) -> (String, Vec<usize>) {
     }
     (out, src)
 }
+
+/// A broken answer: its text and the source line of each of its lines.
+type Broken = (String, Vec<usize>);
 
 fn program(name: &str) -> String {
     let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("tests/data/programs/{name}"));
@@ -74,7 +77,7 @@ fn each_invariant_check_catches_its_break() {
             }
         })
         .collect();
-    let breaks: Vec<(&str, &String, Rule, (String, Vec<usize>))> = vec![
+    let breaks: Vec<(&str, &String, Rule, Broken)> = vec![
         (
             "the G41 move split",
             &pocket,
