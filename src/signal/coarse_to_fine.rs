@@ -266,9 +266,7 @@ pub fn coarse_to_fine(
     let stage_5 = || {
         params
             .refine
-            .then(|| {
-                narrow_band_part_with(x, &v.modes, &vmd_strong, Some(d), &smooth, early_alone)
-            })
+            .then(|| narrow_band_part_with(x, &v.modes, &vmd_strong, Some(d), &smooth, early_alone))
             .transpose()
     };
     let (early, refined) = parallel::join(stages_2_3, stage_5);

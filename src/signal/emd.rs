@@ -363,14 +363,9 @@ pub fn emd(x: &[f64], params: &EmdParams) -> Result<EmdResult, Error> {
         let (mut hmax, mut hmin) = (maxs, mins);
         for it in 0..params.max_sift {
             crate::numeric::stop::check();
-            let Some(wrong_signs) = envelopes(
-                &h,
-                &hmax,
-                &hmin,
-                params.mirrored_extrema,
-                &mut up,
-                &mut lo,
-            ) else {
+            let Some(wrong_signs) =
+                envelopes(&h, &hmax, &hmin, params.mirrored_extrema, &mut up, &mut lo)
+            else {
                 break;
             };
             ok = true;

@@ -120,8 +120,9 @@ pub fn robust_sigma(r: &[f64]) -> f64 {
 /// [`median`] of exactly 8 values, by Batcher's odd-even merge sort network (19
 /// compare-exchanges in [`f64::total_cmp`] order, no branches to mispredict): the mean of
 /// the 4th and 5th smallest, the same values and so the same bits as [`median`]'s selection
-/// (`median_of_8_matches_median`). The interior of [`neighbour_median`] in 1-D, where
-/// `select_nth_unstable_by` on 8 values cost 1.4 ms of a 20,000-sample decomposition.
+/// (`median_of_8_matches_median`). The interior of [`neighbour_median`] in 1-D: a
+/// selection on 8 values branches unpredictably on every sample (the 1-D flyer screen took
+/// 1.4 ms of a 20,000-sample decomposition, BENCHMARKS.md issue 41 item 8).
 fn median_of_8(mut v: [f64; 8]) -> f64 {
     const NET: [(usize, usize); 19] = [
         (0, 1),

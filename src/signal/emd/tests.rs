@@ -93,14 +93,9 @@ fn reference_emd(x: &[f64], params: &EmdParams) -> Vec<Vec<f64>> {
         let (mut hmax, mut hmin) = (maxs, mins);
         for _ in 0..params.max_sift {
             let (mut up, mut lo) = (vec![0.0; n], vec![0.0; n]);
-            let Some(wrong_signs) = envelopes(
-                &h,
-                &hmax,
-                &hmin,
-                params.mirrored_extrema,
-                &mut up,
-                &mut lo,
-            ) else {
+            let Some(wrong_signs) =
+                envelopes(&h, &hmax, &hmin, params.mirrored_extrema, &mut up, &mut lo)
+            else {
                 break;
             };
             ok = true;

@@ -194,7 +194,9 @@ fn banded_solve_per_order_matches_reference_bit_for_bit() {
                 let fast = solve_banded(&x, d, lam);
                 let slow = reference_solve_banded(&x, d, lam);
                 assert!(
-                    fast.iter().zip(&slow).all(|(a, b)| a.to_bits() == b.to_bits()),
+                    fast.iter()
+                        .zip(&slow)
+                        .all(|(a, b)| a.to_bits() == b.to_bits()),
                     "d = {d}, n = {n}, lambda = {lam}"
                 );
             }
