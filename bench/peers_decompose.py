@@ -5,6 +5,7 @@ coarse-to-fine decomposition on the same signals, in the same run, and prints th
 Usage (from the crate root):  python3 bench/peers_decompose.py [--sizes 2025 20000 250000]
                               python3 bench/peers_decompose.py --peer lean --peer-path FILE
                                   [--rounds 5] [--sizes 2025 20000] [--signals numpy bench]
+                                  [--ours-bin target/release/deps/decompose-HASH]
 
 `--peer vmdpy` (default): the peer pipeline below (vmdpy, two-iterate transcription above
 20,000 samples), timed after our bench.
@@ -165,8 +166,12 @@ def signal_kinds():
 
 
 def run_ours(crate, tmp, sizes):
+    # `--ours-bin PATH`: a bench binary built elsewhere (e.g. from an older commit, for a
+    # before/after table against the same peer run) instead of `cargo bench`.
+    binary = arg("--ours-bin")
+    cmd = [binary] if binary else ["cargo", "bench", "--bench", "decompose", "--"]
     out = subprocess.run(
-        ["cargo", "bench", "--bench", "decompose", "--", "--signals", tmp, "--sizes", *map(str, sizes)],
+        [*cmd, "--signals", tmp, "--sizes", *map(str, sizes)],
         cwd=crate, check=True, capture_output=True, text=True,
     ).stdout
     return {d["n"]: d for d in (json.loads(line) for line in out.splitlines() if line.startswith("{"))}
