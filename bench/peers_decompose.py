@@ -132,8 +132,10 @@ def write_signals(tmp, sizes, kind="numpy", crate=None):
     """Writes `tmp/signal_N.json` for each size with the noise of `kind` (`numpy` or `bench`,
     see the module doc) and returns the signals and the true systematic errors."""
     if kind == "bench":
+        binary = arg("--ours-bin")
+        cmd = [binary] if binary else ["cargo", "bench", "--bench", "decompose", "--"]
         subprocess.run(
-            ["cargo", "bench", "--bench", "decompose", "--", "--write-signals", tmp, "--sizes", *map(str, sizes)],
+            [*cmd, "--write-signals", tmp, "--sizes", *map(str, sizes)],
             cwd=crate, check=True, capture_output=True, text=True,
         )
     signals, truths = {}, {}
