@@ -4,7 +4,8 @@ coarse-to-fine decomposition on the same signals, in the same run, and prints th
 
 Usage (from the crate root):  python3 bench/peers_decompose.py [--sizes 2025 20000 250000]
                               python3 bench/peers_decompose.py --peer lean --peer-path FILE
-                                  [--rounds 5] [--sizes 2025 20000]
+                                  [--rounds 5] [--sizes 2025 20000] [--signals numpy bench]
+                                  [--ours-bin target/release/deps/decompose-HASH]
 
 `--peer vmdpy` (default): the peer pipeline below (vmdpy, two-iterate transcription above
 20,000 samples), timed after our bench.
@@ -16,8 +17,13 @@ our bench (in process and over HTTP) then run interleaved, `--rounds` times, and
 best time is compared (the machine is shared; the minimum is the least disturbed run).
 
 The signals are the paper's eq. 23 continued with step 0.01 (t = 1 + 0.01 k) plus
-N(0, 0.005 mm) noise (numpy default_rng(0)); they are written to a temporary folder that
+N(0, 0.005 mm) noise; they are written to a temporary folder that
 `cargo bench --bench decompose -- --signals DIR` reads, so both sides see identical input.
+`--signals` names the noise: `numpy` (default; numpy default_rng(0)) or `bench` (the Rust
+bench's own `paper_signal`, rand StdRng seed 0, written by `cargo bench --bench decompose --
+--write-signals DIR`), or both (`--signals numpy bench`: one table each, same run). They are
+not equally hard for the peer: on numpy's noise its VMD needs 232 iterations at 20,000
+samples, on the bench's it converges sooner (issue 41 measured the ratio there).
 Peer pipeline as REPORT.md (seed 002 reference): VMD K=7, alpha 2000, tau 0, DC 0, init 1,
 tol 1e-7, at most 500 iterations -> |r| > 0.3 -> X1; PyEMD EMD() of X1 -> screening against
 the measured error -> X2; weak parts -> db4 soft universal threshold (max level) -> X3.
@@ -122,22 +128,52 @@ def int_list(name):
     return out
 
 
-def write_signals(tmp, sizes):
+def write_signals(tmp, sizes, kind="numpy", crate=None):
+    """Writes `tmp/signal_N.json` for each size with the noise of `kind` (`numpy` or `bench`,
+    see the module doc) and returns the signals and the true systematic errors."""
+    if kind == "bench":
+        binary = arg("--ours-bin")
+        cmd = [binary] if binary else ["cargo", "bench", "--bench", "decompose", "--"]
+        subprocess.run(
+            [*cmd, "--write-signals", tmp, "--sizes", *map(str, sizes)],
+            cwd=crate, check=True, capture_output=True, text=True,
+        )
     signals, truths = {}, {}
     for n in sizes:
         t = 1 + 0.01 * np.arange(n)
         s = 0.04 * (np.sin(1.6 * np.pi * t) + np.cos(0.05 * np.pi * t) + 4 * np.exp(-3 * t))
-        x = s + np.random.default_rng(0).normal(0, 0.005, n)
+        path = os.path.join(tmp, f"signal_{n}.json")
+        if kind == "bench":
+            with open(path) as fh:
+                x = np.array(json.load(fh))
+        else:
+            x = s + np.random.default_rng(0).normal(0, 0.005, n)
+            with open(path, "w") as fh:
+                json.dump(x.tolist(), fh)
         signals[n] = x
         truths[n] = s
-        with open(os.path.join(tmp, f"signal_{n}.json"), "w") as fh:
-            json.dump(x.tolist(), fh)
     return signals, truths
 
 
+def signal_kinds():
+    kinds = []
+    if "--signals" in sys.argv:
+        for a in sys.argv[sys.argv.index("--signals") + 1 :]:
+            if a not in ("numpy", "bench"):
+                break
+            kinds.append(a)
+        if not kinds:
+            sys.exit("--signals takes numpy, bench or both")
+    return kinds or ["numpy"]
+
+
 def run_ours(crate, tmp, sizes):
+    # `--ours-bin PATH`: a bench binary built elsewhere (e.g. from an older commit, for a
+    # before/after table against the same peer run) instead of `cargo bench`.
+    binary = arg("--ours-bin")
+    cmd = [binary] if binary else ["cargo", "bench", "--bench", "decompose", "--"]
     out = subprocess.run(
-        ["cargo", "bench", "--bench", "decompose", "--", "--signals", tmp, "--sizes", *map(str, sizes)],
+        [*cmd, "--signals", tmp, "--sizes", *map(str, sizes)],
         cwd=crate, check=True, capture_output=True, text=True,
     ).stdout
     return {d["n"]: d for d in (json.loads(line) for line in out.splitlines() if line.startswith("{"))}
@@ -165,9 +201,16 @@ def main_lean():
     rounds = int(arg("--rounds", "5"))
     crate = os.path.dirname(os.path.dirname(os.path.abspath(__file__)))
     print(f"peer: {path} (method_c2f, vmd_impl lean); {rounds} interleaved rounds, best of each side")
+    for kind in signal_kinds():
+        print()
+        print(f"## signals: {kind} noise")
+        lean_round_trip(peer, crate, sizes, rounds, kind)
+
+
+def lean_round_trip(peer, crate, sizes, rounds, kind):
     print(f"load average at start: {os.getloadavg()}")
     with tempfile.TemporaryDirectory() as tmp:
-        signals, truths = write_signals(tmp, sizes)
+        signals, truths = write_signals(tmp, sizes, kind, crate)
         best_peer = {n: float("inf") for n in sizes}
         info = {}
         ours = {}
@@ -190,12 +233,12 @@ def main_lean():
             print(f"  round {r + 1}/{rounds} done, load average {os.getloadavg()[0]:.1f}", flush=True)
         print(f"load average at end: {os.getloadavg()}")
         print()
-        print("| n | lean peer C2F (s) | VMD iterations peer / ours | truecut in process (s) | ratio (goal >= 100x) "
-              "| truecut HTTP (s) | ratio (goal >= 30x) |")
-        print("|---|---|---|---|---|---|---|")
+        print(f"| signals | n | lean peer C2F (s) | VMD iterations peer / ours | truecut in process (s) "
+              "| ratio (goal >= 100x) | truecut HTTP (s) | ratio (goal >= 30x) |")
+        print("|---|---|---|---|---|---|---|---|")
         for n in sizes:
             o, p = ours[n], best_peer[n]
-            print(f"| {n:,} | {p:.4f} | {info[n][0]} / {o['vmd_iterations']} | {o['coarse_to_fine_s']:.5f} "
+            print(f"| {kind} | {n:,} | {p:.4f} | {info[n][0]} / {o['vmd_iterations']} | {o['coarse_to_fine_s']:.5f} "
                   f"| {p / o['coarse_to_fine_s']:.1f}x | {o['http_s']:.5f} | {p / o['http_s']:.1f}x |")
         print()
         print("Where our time goes (ms, each stage alone, best of the rounds):")
@@ -203,12 +246,12 @@ def main_lean():
             print(f"  {n:,}: " + ", ".join(f"{k} {v:.2f}" for k, v in ours[n]["profile_ms"].items()))
         print()
         print("Accuracy against the true systematic error (r / max abs / mean abs, mm):")
-        print("| n | lean peer C2F | truecut C2F default |")
-        print("|---|---|---|")
+        print("| signals | n | lean peer C2F | truecut C2F default |")
+        print("|---|---|---|---|")
         for n in sizes:
             a = ours[n]["default_r_max_mean"]
             _, r, mx, mn = info[n]
-            print(f"| {n:,} | {r:.6f} / {mx:.6f} / {mn:.6f} | {a[0]:.6f} / {a[1]:.6f} / {a[2]:.6f} |")
+            print(f"| {kind} | {n:,} | {r:.6f} / {mx:.6f} / {mn:.6f} | {a[0]:.6f} / {a[1]:.6f} / {a[2]:.6f} |")
 
 
 def main():
@@ -217,8 +260,9 @@ def main():
     sizes = int_list("--sizes") or [2025, 20000, 250000]
     here = os.path.dirname(os.path.abspath(__file__))
     crate = os.path.dirname(here)
+    kind = signal_kinds()[0]
     with tempfile.TemporaryDirectory() as tmp:
-        signals, truths = write_signals(tmp, sizes)
+        signals, truths = write_signals(tmp, sizes, kind, crate)
         ours = run_ours(crate, tmp, sizes)
         print("| n | peers C2F (s) | truecut C2F default (s) | ratio | truecut stages 1-4 (s) | ratio |")
         print("|---|---|---|---|---|---|")

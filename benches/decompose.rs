@@ -5,6 +5,10 @@
 //! `-- --signals DIR` it reads `DIR/signal_N.json` (written by `bench/peers_decompose.py`,
 //! which times the Python peers on the same signals in the same run and prints the ratios),
 //! `-- --sizes 2025 20000` limits the sizes and `-- --reps N` sets the runs per figure.
+//! `-- --write-signals DIR` (with `--sizes`) only writes this bench's own signals (seeded
+//! `StdRng` noise, below) as `DIR/signal_N.json` and exits, so that
+//! `bench/peers_decompose.py --signals bench` can time the peers on them (issue 41: the
+//! peer's VMD converges on them in fewer iterations than on numpy's seed-0 noise).
 //! Alone it prints the ratio of the default pipeline to Chen et al. 2024's stages 1-4 (baseline).
 //! Each line also gives the accuracy of both against the true systematic error (eq. 23
 //! without the noise): Pearson r, max and mean abs error (mm), so a speed-up that changes
@@ -247,6 +251,18 @@ fn main() {
         .position(|a| a == "--reps")
         .and_then(|i| args.get(i + 1))
         .and_then(|s| s.parse().ok());
+    if let Some(out) = args
+        .iter()
+        .position(|a| a == "--write-signals")
+        .and_then(|i| args.get(i + 1))
+    {
+        std::fs::create_dir_all(out).expect("signal folder");
+        for &n in &sizes {
+            let text = serde_json::to_string(&paper_signal(n)).expect("numbers encode");
+            std::fs::write(format!("{out}/signal_{n}.json"), text).expect("signal file written");
+        }
+        return;
+    }
     if args.iter().any(|a| a == "--split") {
         split(&sizes, reps_arg.unwrap_or(20));
         return;

@@ -13,7 +13,9 @@ pub fn uniform_cubic(q: f64, [a, b]: [f64; 2], pieces: usize) -> (usize, [f64; 4
     } else {
         0.0
     };
-    let j = (u.floor() as usize).min(pieces - 1);
+    // u ≥ 0 (or NaN, which both casts send to 0), so truncation is the floor: no libm call
+    // (x86-64's baseline has no rounding instruction).
+    let j = (u as usize).min(pieces - 1);
     let t = u - j as f64;
     let s = 1.0 - t;
     (

@@ -90,7 +90,9 @@ impl Carrier {
             c.sin.push(s);
         }
         let p = 2 * m;
-        let mut xtx = DMatrix::<f64>::zeros(p, p);
+        // XᵀX accumulated in a plain column-major array (as DMatrix stores it; the same
+        // additions in the same order), its upper triangle only, then wrapped.
+        let mut flat = vec![0.0; p * p];
         for t in 0..n {
             let (j, w, cs, sn) = c.row(t);
             let vals = [
@@ -113,12 +115,21 @@ impl Carrier {
                 m + j + 2,
                 m + j + 3,
             ];
-            for a in 0..8 {
-                for b in 0..8 {
-                    xtx[(idx[a], idx[b])] += vals[a] * vals[b];
+            // idx ascends, so a ≤ b is the upper triangle (row ≤ column).
+            for b in 0..8 {
+                let col = &mut flat[idx[b] * p..idx[b] * p + p];
+                for a in 0..=b {
+                    col[idx[a]] += vals[a] * vals[b];
                 }
             }
         }
+        // The lower triangle: the same products (x·y = y·x exactly) in the same order.
+        for col in 0..p {
+            for row in col + 1..p {
+                flat[col * p + row] = flat[row * p + col];
+            }
+        }
+        let mut xtx = DMatrix::<f64>::from_vec(p, p, flat);
         // Second-difference penalty DᵀD on each block.
         let mut pen = DMatrix::<f64>::zeros(p, p);
         let block_pen = difference_penalty(m, 2);

@@ -225,8 +225,19 @@ pub fn coarse_to_fine(
         k: Some(k),
         ..params.vmd.clone()
     };
-    // Stage 1: coarse VMD and screening.
-    let v = vmd(x, &vp)?;
+    let lambda = params.lambda;
+    let smooth = move |r: &[f64]| whittaker(r, d, lambda);
+    // Stage 1: coarse VMD and screening. Stage 5's smoother of x alone needs nothing from
+    // VMD: when no core is free for VMD's own split (it would then run on one thread), it
+    // runs beside VMD on a second thread, which takes what share of the machine the
+    // scheduler gives it; with a core free, VMD splits over both and the smoother waits.
+    let (v, early_alone) = if params.refine && !parallel::core_free() {
+        let (alone, v) = parallel::join(|| smooth(x), || vmd(x, &vp));
+        let alone = alone.unwrap_or_else(|panic| std::panic::resume_unwind(panic));
+        (v?, Some(alone))
+    } else {
+        (vmd(x, &vp)?, None)
+    };
     crate::numeric::stop::check();
     let (vmd_corr, vmd_strong) = screen(&v.modes, x, params.threshold);
     let x1 = sum_selected(&v.modes, &vmd_strong, n);
@@ -252,12 +263,10 @@ pub fn coarse_to_fine(
         let den = denoise(&w, &wav, Some(level));
         Ok((emd_corr, emd_strong, x2, den))
     };
-    let lambda = params.lambda;
-    let smooth = move |r: &[f64]| whittaker(r, d, lambda);
     let stage_5 = || {
         params
             .refine
-            .then(|| narrow_band_part(x, &v.modes, &vmd_strong, Some(d), &smooth))
+            .then(|| narrow_band_part_with(x, &v.modes, &vmd_strong, Some(d), &smooth, early_alone))
             .transpose()
     };
     let (early, refined) = parallel::join(stages_2_3, stage_5);
@@ -335,6 +344,18 @@ pub fn narrow_band_part(
     order_1d: Option<usize>,
     smooth: &(dyn Fn(&[f64]) -> Result<Smoothed, Error> + Sync),
 ) -> Result<(Vec<f64>, Vec<NarrowBand>, Smoothed), Error> {
+    narrow_band_part_with(x, modes, strong, order_1d, smooth, None)
+}
+
+/// [`narrow_band_part`] with `smooth(x)` (S alone) already computed when given.
+fn narrow_band_part_with(
+    x: &[f64],
+    modes: &[Vec<f64>],
+    strong: &[bool],
+    order_1d: Option<usize>,
+    smooth: &(dyn Fn(&[f64]) -> Result<Smoothed, Error> + Sync),
+    alone_done: Option<Result<Smoothed, Error>>,
+) -> Result<(Vec<f64>, Vec<NarrowBand>, Smoothed), Error> {
     let n = x.len();
     let sigma = noise_sigma(x);
     let threshold = (2.0 * (n as f64).ln() + 8.0) * sigma * sigma;
@@ -350,13 +371,21 @@ pub fn narrow_band_part(
             }
         }
     }
-    let alone = || smooth(x);
+    let (alone_done, alone_now) = match alone_done {
+        Some(done) => (Some(done), None),
+        None => (None, Some(|| smooth(x))),
+    };
     if lines.is_empty() {
-        return Ok((vec![0.0; n], Vec::new(), alone()?));
+        let alone = match (alone_done, alone_now) {
+            (Some(done), _) => done,
+            (None, Some(now)) => now(),
+            (None, None) => unreachable!("one of the two is set"),
+        };
+        return Ok((vec![0.0; n], Vec::new(), alone?));
     }
     let sub = |a: &[f64], b: &[f64]| -> Vec<f64> { a.iter().zip(b).map(|(p, q)| p - q).collect() };
-    // S alone runs on its own thread while the carriers are fitted.
-    let (without, with) = parallel::join(alone, || -> Result<_, Error> {
+    // S alone runs on its own thread while the carriers are fitted (unless already done).
+    let fit_carriers = || -> Result<_, Error> {
         let carriers: Vec<Carrier> = lines
             .iter()
             .map(|&(_, f)| Carrier::new(n, f))
@@ -403,9 +432,20 @@ pub fn narrow_band_part(
         let hsum = total(&h);
         let l = smooth(&sub(x, &hsum))?;
         Ok((hsum, l, edf))
-    });
-    // A panic (or a stop) on the smoother's thread goes on unwinding here, payload kept.
-    let without = without.unwrap_or_else(|panic| std::panic::resume_unwind(panic))?;
+    };
+    let (without, with) = match (alone_done, alone_now) {
+        (Some(done), _) => (done, fit_carriers()),
+        (None, Some(now)) => {
+            let (without, with) = parallel::join(now, fit_carriers);
+            // A panic (or a stop) on the smoother's thread goes on unwinding here, payload kept.
+            (
+                without.unwrap_or_else(|panic| std::panic::resume_unwind(panic)),
+                with,
+            )
+        }
+        (None, None) => unreachable!("one of the two is set"),
+    };
+    let without = without?;
     // A carrier that cannot be fitted (e.g. a singular envelope design on a tiny record)
     // only means there is no narrow-band part: the smoother alone is the answer.
     let Ok((hsum, l, edf)) = with else {

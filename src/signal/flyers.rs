@@ -117,6 +117,50 @@ pub fn robust_sigma(r: &[f64]) -> f64 {
     1.4826 * median(&mut v)
 }
 
+/// [`median`] of exactly 8 values, by Batcher's odd-even merge sort network (19
+/// compare-exchanges in [`f64::total_cmp`] order, no branches to mispredict): the mean of
+/// the 4th and 5th smallest, the same values and so the same bits as [`median`]'s selection
+/// (`median_of_8_matches_median`). The interior of [`neighbour_median`] in 1-D: a
+/// selection on 8 values branches unpredictably on every sample (the 1-D flyer screen took
+/// 1.4 ms of a 20,000-sample decomposition, BENCHMARKS.md issue 41 item 8).
+fn median_of_8(mut v: [f64; 8]) -> f64 {
+    const NET: [(usize, usize); 19] = [
+        (0, 1),
+        (2, 3),
+        (4, 5),
+        (6, 7),
+        (0, 2),
+        (1, 3),
+        (4, 6),
+        (5, 7),
+        (1, 2),
+        (5, 6),
+        (0, 4),
+        (1, 5),
+        (2, 6),
+        (3, 7),
+        (2, 4),
+        (3, 5),
+        (1, 2),
+        (3, 4),
+        (5, 6),
+    ];
+    // Each value as the integer whose order is f64::total_cmp's (its own inverse), so each
+    // compare-exchange is an integer min and max.
+    let key = |x: f64| {
+        let b = x.to_bits() as i64;
+        b ^ (((b >> 63) as u64) >> 1) as i64
+    };
+    let mut k = v.map(key);
+    for (a, b) in NET {
+        let (p, q) = (k[a], k[b]);
+        k[a] = p.min(q);
+        k[b] = p.max(q);
+    }
+    v = k.map(|b| f64::from_bits((b ^ (((b >> 63) as u64) >> 1) as i64) as u64));
+    0.5 * (v[0..4].iter().copied().fold(f64::NEG_INFINITY, f64::max) + v[4])
+}
+
 /// Samples between two looks at the should-stop check in [`neighbour_median`] (1-D).
 const STOP_EVERY: usize = 1 << 16;
 
@@ -146,6 +190,11 @@ pub fn neighbour_median(x: &[f64], grid: Option<(usize, usize)>) -> Vec<f64> {
             .map(|k| {
                 if k % STOP_EVERY == 0 {
                     crate::numeric::stop::check();
+                }
+                if k >= HALF_1D && k + HALF_1D < x.len() {
+                    // A full window: the 8 neighbours through a sorting network.
+                    let w = &x[k - HALF_1D..=k + HALF_1D];
+                    return median_of_8([w[0], w[1], w[2], w[3], w[5], w[6], w[7], w[8]]);
                 }
                 buf.clear();
                 let hi = (k + HALF_1D + 1).min(x.len());

@@ -33,9 +33,19 @@ pub(crate) fn dct_power(x: &[f64]) -> Vec<f64> {
     let mut spec = fft.make_output_vec();
     fft.process(&mut buf, &mut spec)
         .expect("buffer sizes from the plan");
+    // e^{−iπk/(2n)}, per length once for the process.
+    let twiddles = super::fft::table(super::fft::Table::DctTwiddles, n, || {
+        (0..n)
+            .flat_map(|k| {
+                let tw =
+                    Complex::from_polar(1.0, -std::f64::consts::PI * k as f64 / (2 * n) as f64);
+                [tw.re, tw.im]
+            })
+            .collect()
+    });
     (0..n)
         .map(|k| {
-            let tw = Complex::from_polar(1.0, -std::f64::consts::PI * k as f64 / (2 * n) as f64);
+            let tw = Complex::new(twiddles[2 * k], twiddles[2 * k + 1]);
             let c = (spec[k] * tw).re / 2.0;
             let scale = if k == 0 {
                 1.0 / n as f64
@@ -45,6 +55,13 @@ pub(crate) fn dct_power(x: &[f64]) -> Vec<f64> {
             c * c * scale
         })
         .collect()
+}
+
+/// The penalty's eigenvalues `reflective_eigenvalues(n, d)`, per (n, d) once for the process.
+fn eigenvalues(n: usize, d: usize) -> std::sync::Arc<Vec<f64>> {
+    super::fft::table(super::fft::Table::Eigenvalues(d), n, || {
+        reflective_eigenvalues(n, d)
+    })
 }
 
 /// Minimises a GCV score over log10 λ ∈ [lo, hi]: a scan in steps of at most 0.25, then
@@ -77,7 +94,7 @@ pub fn half_power_frequency(lambda: f64, d: usize) -> f64 {
 /// RSS = Σ (1 − G_k)² c_k², tr H = Σ G_k. O(n) per λ after one O(n log n) DCT.
 /// Known bad cases: strongly correlated noise (GCV under-smooths).
 pub fn gcv_lambda(x: &[f64], d: usize) -> f64 {
-    gcv_lambda_with(x, d, &reflective_eigenvalues(x.len(), d))
+    gcv_lambda_with(x, d, &eigenvalues(x.len(), d))
 }
 
 /// [`gcv_lambda`] with the penalty's eigenvalues `e` (`reflective_eigenvalues(n, d)`)
@@ -196,7 +213,7 @@ pub fn whittaker(x: &[f64], d: usize, lambda: Option<f64>) -> Result<Smoothed, E
             cutoff: 0.5,
         });
     }
-    let e = reflective_eigenvalues(n, d);
+    let e = eigenvalues(n, d);
     let lam = match lambda {
         Some(l) if l.is_finite() && l >= 0.0 => l.min(MAX_CONDITION / 4f64.powi(d as i32)),
         Some(_) => {
@@ -224,18 +241,36 @@ pub fn whittaker(x: &[f64], d: usize, lambda: Option<f64>) -> Result<Smoothed, E
 /// Arranged for a short serial chain: each row's D is inverted once, so the row's L entries
 /// cost multiplications rather than divisions (the factorisation is a recurrence down the
 /// rows, so latency, not operation count, is what it costs), and the refinement reuses its
-/// buffers.
+/// buffers. Compiled once per order d (1..=6, [`solve_banded_d`]) so that the band loops
+/// have fixed lengths and unroll; the same operations in the same order for every d.
 fn solve_banded(x: &[f64], d: usize, lam: f64) -> Vec<f64> {
+    match d {
+        1 => solve_banded_d::<1>(x, lam),
+        2 => solve_banded_d::<2>(x, lam),
+        3 => solve_banded_d::<3>(x, lam),
+        4 => solve_banded_d::<4>(x, lam),
+        5 => solve_banded_d::<5>(x, lam),
+        6 => solve_banded_d::<6>(x, lam),
+        _ => unreachable!("whittaker checks 1 <= d <= 6"),
+    }
+}
+
+/// [`solve_banded`] for the order `D` (needs n > D).
+fn solve_banded_d<const D: usize>(x: &[f64], lam: f64) -> Vec<f64> {
     let n = x.len();
+    let d = D;
     // Difference stencil c_j = (-1)^(d-j) C(d, j).
-    let c = difference_stencil(d);
+    let stencil = difference_stencil(d);
+    let c = &stencil[..=D];
     // Lower band: a[i*w + s] = A[i][i-s].
     let w = d + 1;
     let mut a = vec![0.0; n * w];
     for r in 0..n - d {
-        for p in 0..=d {
+        // Rows r..=r+D, one fixed-size window.
+        let win = &mut a[r * w..(r + D + 1) * w];
+        for p in 0..=D {
             for q in 0..=p {
-                a[(r + p) * w + (p - q)] += lam * c[p] * c[q];
+                win[p * w + (p - q)] += lam * c[p] * c[q];
             }
         }
     }
@@ -246,33 +281,63 @@ fn solve_banded(x: &[f64], d: usize, lam: f64) -> Vec<f64> {
     // 1/D[i]. With t_k = L[i][k]·D[k] kept per row, L[i][j] = (A[i][j] − Σ_k t_k L[j][k])/D[j].
     let mut inv = vec![0.0; n];
     let mut t = [0.0; 7];
-    for i in 0..n {
-        let j0 = i.saturating_sub(d);
+    for i in 0..n.min(d) {
         let row = i * w;
         let mut dv = a[row];
-        for j in j0..i {
+        for j in 0..i {
             let jrow = j * w;
             let mut v = a[row + (i - j)];
-            for k in j0.max(j.saturating_sub(d))..j {
-                v -= t[k - j0] * a[jrow + (j - k)];
+            for k in 0..j {
+                v -= t[k] * a[jrow + (j - k)];
             }
             let l = v * inv[j];
             a[row + (i - j)] = l;
-            t[j - j0] = l * a[jrow];
-            dv -= l * t[j - j0];
+            t[j] = l * a[jrow];
+            dv -= l * t[j];
         }
         a[row] = dv;
         inv[i] = 1.0 / dv;
     }
+    // From row D on every row has a full band: j = i − D + jj, k = i − D + kk (the same
+    // operations as the rows above, with loop bounds fixed by D).
+    for i in d..n {
+        let j0 = i - D;
+        let win = &mut a[j0 * w..(i + 1) * w];
+        let inv_win = &inv[j0..i];
+        let mut dv = win[D * w];
+        for jj in 0..D {
+            let jrow = jj * w;
+            let mut v = win[D * w + (D - jj)];
+            for kk in 0..jj {
+                v -= t[kk] * win[jrow + (jj - kk)];
+            }
+            let l = v * inv_win[jj];
+            win[D * w + (D - jj)] = l;
+            t[jj] = l * win[jrow];
+            dv -= l * t[jj];
+        }
+        win[D * w] = dv;
+        inv[i] = 1.0 / dv;
+    }
     // Solves L D Lᵀ z = z in place. Each sweep takes the farthest neighbour first, so the
     // nearest one (just computed) enters last and the chain from row to row is one
-    // multiply-subtract.
+    // multiply-subtract. The first (last) d rows have fewer neighbours; the rest a full band
+    // of D, a loop of fixed length.
     let substitute = |z: &mut [f64]| {
-        for i in 1..n {
+        for i in 1..n.min(d) {
             let row = &a[i * w..i * w + w];
             let mut v = z[i];
-            for s in (1..=d.min(i)).rev() {
+            for s in (1..=i).rev() {
                 v -= row[s] * z[i - s];
+            }
+            z[i] = v;
+        }
+        for i in d..n {
+            let row = &a[i * w..i * w + w];
+            let prev = &z[i - d..i];
+            let mut v = z[i];
+            for s in (1..=D).rev() {
+                v -= row[s] * prev[d - s];
             }
             z[i] = v;
         }
@@ -281,8 +346,16 @@ fn solve_banded(x: &[f64], d: usize, lam: f64) -> Vec<f64> {
         }
         for i in (0..n - 1).rev() {
             let mut v = z[i];
-            for s in (1..=d.min(n - 1 - i)).rev() {
-                v -= a[(i + s) * w + s] * z[i + s];
+            if i + d < n {
+                let next = &z[i + 1..=i + d];
+                let below = &a[(i + 1) * w..(i + d) * w + w];
+                for s in (1..=D).rev() {
+                    v -= below[(s - 1) * w + s] * next[s - 1];
+                }
+            } else {
+                for s in (1..=d.min(n - 1 - i)).rev() {
+                    v -= a[(i + s) * w + s] * z[i + s];
+                }
             }
             z[i] = v;
         }
@@ -298,8 +371,8 @@ fn solve_banded(x: &[f64], d: usize, lam: f64) -> Vec<f64> {
             *r = xi - zi;
         }
         for r in 0..n - d {
-            let v: f64 = c.iter().zip(&z[r..=r + d]).map(|(cj, zj)| cj * zj).sum();
-            for (res, lcj) in resid[r..=r + d].iter_mut().zip(&lc) {
+            let v: f64 = c.iter().zip(&z[r..=r + D]).map(|(cj, zj)| cj * zj).sum();
+            for (res, lcj) in resid[r..=r + D].iter_mut().zip(&lc[..=D]) {
                 *res -= lcj * v;
             }
         }

@@ -26,3 +26,13 @@ fn cached_plans_match_fresh_ones() {
         assert!(Arc::ptr_eq(&forward(len), &f1), "forward {len} not cached");
     }
 }
+
+#[test]
+fn tables_are_computed_once_and_shared() {
+    use super::{Table, table};
+    let a = table(Table::Eigenvalues(3), 1234, || vec![1.0, 2.0]);
+    let b = table(Table::Eigenvalues(3), 1234, || panic!("computed again"));
+    assert!(Arc::ptr_eq(&a, &b));
+    let c = table(Table::Eigenvalues(4), 1234, || vec![3.0]);
+    assert_eq!(*c, vec![3.0]);
+}

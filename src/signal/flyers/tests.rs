@@ -279,3 +279,21 @@ fn one_2_mm_flyer_on_the_demo_surface_moves_no_other_offset_over_2_um() {
     );
     assert!(worst <= 0.002, "{worst} mm");
 }
+
+#[test]
+fn median_of_8_matches_median() {
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    for case in 0..20_000 {
+        let mut v = [0.0f64; 8];
+        for x in &mut v {
+            // Few distinct values (ties, signed zeros) in some cases, any value in others.
+            *x = match case % 3 {
+                0 => [-1.0, -0.0, 0.0, 2.0][rng.random_range(0..4)],
+                1 => (rng.random::<f64>() * 5.0).floor() - 2.0,
+                _ => rng.random::<f64>() - 0.5,
+            };
+        }
+        let mut w = v.to_vec();
+        assert_eq!(median_of_8(v).to_bits(), median(&mut w).to_bits(), "{v:?}");
+    }
+}
