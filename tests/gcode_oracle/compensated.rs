@@ -1,18 +1,22 @@
 //! A compensated program is still a valid program (issue 24, item 3): every program in
-//! `tests/data/programs` and one program per canned cycle truecut models (G73, G74, G81–G89,
-//! each with G99 and G98 holes between feed moves and rapids) is compensated as the
-//! `compensated-program` route does it — volumetric, contour, and both — and every answer
-//! goes through [`crate::valid::check`]: re-read by truecut's reader and by rs274, both must
-//! parse it, and every programmed point p is hit at p − e(p) within 1 µm.
+//! `tests/data/programs` (the real posts and the held-out contours of `heldout/`) and one
+//! program per canned cycle truecut models (G73, G74, G81–G89, each with G99 and G98 holes
+//! between feed moves and rapids) is compensated as the `compensated-program` route does it
+//! — volumetric, contour, and both — and every answer goes through [`crate::valid::check`]:
+//! re-read by truecut's reader and by rs274, both must parse it, and every programmed point
+//! p is hit at p − e(p) within 1 µm. The answers are computed once ([`answers`]) and shared
+//! with `crate::invariants`.
 //!
 //! The map is fitted (kinematic model) on a synthetic machine's measured grid, the contour
 //! machine is the cascade of the route's contour test; the programs run under G54 and tool
 //! lengths that put them inside the map's box.
 
+use std::sync::OnceLock;
+
 use serde_json::json;
 use truecut::cam::{
-    DEFAULT_BAND_MM, DEFAULT_MAX_DURATION_RATIO, DEFAULT_TOLERANCE_MM, MAX_ITERATIONS,
-    PredistortOptions, compensate_program, contour_program, volumetric_and_contour,
+    Compensated, DEFAULT_BAND_MM, DEFAULT_MAX_DURATION_RATIO, DEFAULT_TOLERANCE_MM, MAX_ITERATIONS,
+    PredistortOptions, Predistorted, compensate_program, contour_program, volumetric_and_contour,
 };
 use truecut::motion::{DEFAULT_PERIOD_S, Machine, ReadOptions};
 use truecut::volumetric::{FitOptions, ModelKind, ShapeFamily, SyntheticMachine, fit};
@@ -44,24 +48,38 @@ fn cycle_program(code: u32) -> String {
     )
 }
 
+/// The held-out programs' folder under `tests/data/programs` (issue 39 item 3's held-out
+/// set: short contours, run here like the posts).
+const HELDOUT: &str = "heldout";
+
 /// A program: name, text, G54 offset (mm) and tool (H number, length mm).
 type Case = (String, String, [f64; 3], (u32, f64));
 
 /// The programs with the G54 offset and tool length that place them in the map's box.
 fn programs() -> Vec<Case> {
     let dir = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/data/programs");
-    let mut files: Vec<_> = std::fs::read_dir(&dir)
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|x| x == "nc"))
-        .collect();
-    files.sort();
-    assert!(!files.is_empty(), "no programs in {}", dir.display());
+    let nc = |dir: &std::path::Path| {
+        let mut files: Vec<_> = std::fs::read_dir(dir)
+            .unwrap()
+            .flatten()
+            .map(|e| e.path())
+            .filter(|p| p.extension().is_some_and(|x| x == "nc"))
+            .collect();
+        files.sort();
+        assert!(!files.is_empty(), "no programs in {}", dir.display());
+        files
+    };
+    let mut files = nc(&dir);
+    files.extend(nc(&dir.join(HELDOUT)));
     let mut out: Vec<_> = files
         .iter()
         .map(|p| {
-            let name = p.file_stem().unwrap().to_string_lossy().to_string();
+            let stem = p.file_stem().unwrap().to_string_lossy().to_string();
+            let name = if p.parent().is_some_and(|d| d.ends_with(HELDOUT)) {
+                format!("{HELDOUT}/{stem}")
+            } else {
+                stem
+            };
             let text = std::fs::read_to_string(p).unwrap();
             let (g54, tool) = match name.as_str() {
                 "haas_drill" => ([200.0, 100.0, 150.0], (3, 100.0)),
@@ -82,49 +100,120 @@ fn programs() -> Vec<Case> {
     out
 }
 
+/// The map and contour machine every case is compensated with (built once).
+pub struct Setup {
+    /// The kinematic map fitted on the synthetic machine's grid.
+    pub map: truecut::volumetric::VolumetricMap,
+    /// The contour machine: the route test's cascade on X, Y, Z.
+    pub machine: Machine,
+}
+
+/// The setup (module docs), built once for every test of the binary.
+pub fn setup() -> &'static Setup {
+    static SETUP: OnceLock<Setup> = OnceLock::new();
+    SETUP.get_or_init(|| {
+        let synthetic = SyntheticMachine::new(8, ShapeFamily::TrendAndWaviness);
+        let data = synthetic.measure_grid([6, 5, 4], 3);
+        let map = fit(
+            &data,
+            &FitOptions {
+                model: ModelKind::Kinematic,
+                tool_offset_mm: synthetic.tool_offset_mm,
+                ..FitOptions::default()
+            },
+        )
+        .unwrap();
+        let cascade = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
+        let machine = Machine::from_json(&json!({"name": "demo cascade", "kinematics": "xyz",
+            "axes": {"X": cascade, "Y": cascade, "Z": cascade}}))
+        .unwrap();
+        Setup { map, machine }
+    })
+}
+
+/// One (program, mode) case and the service's answer.
+pub struct Answered {
+    /// Program name (file stem, `heldout/` for the held-out folder, `cycle_g<code>`).
+    pub name: String,
+    /// The original program.
+    pub text: String,
+    /// The reading options (G54 offset and tool length placing it in the map's box).
+    pub options: ReadOptions,
+    /// "volumetric", "contour" or "both".
+    pub mode: &'static str,
+    /// The answer and, with contour, its figures; Err: the service's refusal.
+    pub answer: Result<(Compensated, Option<Predistorted>), String>,
+}
+
+/// The modes of the `compensated-program` route.
+pub const MODES: [&str; 3] = ["volumetric", "contour", "both"];
+
+/// Every (program, mode) answer, compensated once on two threads for every test of the
+/// binary (`valid` here, the invariants of issue 39 in `crate::invariants`).
+pub fn answers() -> &'static [Answered] {
+    static ANSWERS: OnceLock<Vec<Answered>> = OnceLock::new();
+    ANSWERS.get_or_init(|| {
+        let s = setup();
+        let cases: Vec<(String, String, ReadOptions, &'static str)> = programs()
+            .into_iter()
+            .flat_map(|(name, text, g54, (tool, length))| {
+                let mut options = ReadOptions::default();
+                options.work_offsets_mm[0] = Some(g54);
+                options.tool_lengths_mm.insert(tool, length);
+                MODES.map(|mode| (name.clone(), text.clone(), options.clone(), mode))
+            })
+            .collect();
+        crate::on_two_threads(cases.len(), |i| {
+            let (name, text, options, mode) = &cases[i];
+            Answered {
+                name: name.clone(),
+                text: text.clone(),
+                options: options.clone(),
+                mode,
+                answer: compensate(text, options, mode, &s.map, &s.machine),
+            }
+        })
+    })
+}
+
+/// `text` (read with `options`) compensated in `mode` as the route does it.
+fn compensate(
+    text: &str,
+    options: &ReadOptions,
+    mode: &str,
+    map: &truecut::volumetric::VolumetricMap,
+    machine: &Machine,
+) -> Result<(Compensated, Option<Predistorted>), String> {
+    let answer = match mode {
+        "volumetric" => {
+            compensate_program(text, options, map, DEFAULT_TOLERANCE_MM).map(|c| (c, None))
+        }
+        "contour" => {
+            contour_program(text, options, machine, &contour_options()).map(|(c, p)| (c, Some(p)))
+        }
+        _ => volumetric_and_contour(
+            text,
+            options,
+            map,
+            DEFAULT_TOLERANCE_MM,
+            machine,
+            &contour_options(),
+        )
+        .map(|(c, p)| (c, Some(p))),
+    };
+    answer.map_err(|e| e.to_string())
+}
+
 #[test]
 fn compensated_programs_are_valid_programs() {
     let rs = crate::oracle();
-    let synthetic = SyntheticMachine::new(8, ShapeFamily::TrendAndWaviness);
-    let data = synthetic.measure_grid([6, 5, 4], 3);
-    let map = fit(
-        &data,
-        &FitOptions {
-            model: ModelKind::Kinematic,
-            tool_offset_mm: synthetic.tool_offset_mm,
-            ..FitOptions::default()
-        },
-    )
-    .unwrap();
-    let cascade = json!({"kv": 30.0, "kff": 0.6, "kp_v": 400.0, "ti_v": 0.01, "tc": 0.0005});
-    let machine = Machine::from_json(&json!({"name": "demo cascade", "kinematics": "xyz",
-        "axes": {"X": cascade, "Y": cascade, "Z": cascade}}))
-    .unwrap();
+    let s = setup();
     let dir = tempfile::tempdir().unwrap();
-    // Every (program, mode) case, compensated and checked on two threads (each case is
-    // independent; rs274's files are named by the case), reported in order.
-    let cases: Vec<(String, String, ReadOptions, &str)> = programs()
-        .into_iter()
-        .flat_map(|(name, text, g54, (tool, length))| {
-            let mut options = ReadOptions::default();
-            options.work_offsets_mm[0] = Some(g54);
-            options.tool_lengths_mm.insert(tool, length);
-            ["volumetric", "contour", "both"]
-                .map(|mode| (name.clone(), text.clone(), options.clone(), mode))
-        })
-        .collect();
-    let outcomes = crate::on_two_threads(cases.len(), |i| {
-        let (name, text, options, mode) = &cases[i];
-        one_case(
-            name,
-            text,
-            options,
-            mode,
-            &map,
-            &machine,
-            rs.as_deref(),
-            dir.path(),
-        )
+    // Every (program, mode) answer checked on two threads (each case is independent;
+    // rs274's files are named by the case), reported in order.
+    let all = answers();
+    let outcomes = crate::on_two_threads(all.len(), |i| {
+        one_case(&all[i], &s.map, rs.as_deref(), dir.path())
     });
     let (mut answers, mut by_rs274, mut points) = (0, 0, 0);
     let (mut worst, mut worst_rs): ((f64, String), (f64, String)) = Default::default();
@@ -176,7 +265,7 @@ fn compensated_programs_are_valid_programs() {
         skipped.join("\n  ")
     );
     assert!(failures.is_empty(), "{}", failures.join("\n\n"));
-    assert!(answers >= 3 * (3 + CYCLES.len()));
+    assert!(answers >= 3 * (5 + CYCLES.len()));
 }
 
 /// What one checked answer gave (see [`one_case`]).
@@ -198,7 +287,7 @@ struct Failure {
 }
 
 /// The route's contour options (default period, duration limit and band).
-fn contour_options() -> PredistortOptions {
+pub fn contour_options() -> PredistortOptions {
     PredistortOptions {
         period_s: DEFAULT_PERIOD_S,
         max_iterations: MAX_ITERATIONS,
@@ -207,43 +296,21 @@ fn contour_options() -> PredistortOptions {
     }
 }
 
-/// Program `name` (`text`, read with `options`) compensated in `mode` (volumetric, contour
-/// or both) with the map `map` and the contour machine `machine`, its answer checked by
-/// [`check`] (rs274's files in `dir`).
-#[allow(clippy::too_many_arguments)]
+/// The answer of case `case` checked by [`check`] against the map `map` (rs274's files in
+/// `dir`).
 fn one_case(
-    name: &str,
-    text: &str,
-    options: &ReadOptions,
-    mode: &str,
+    case: &Answered,
     map: &truecut::volumetric::VolumetricMap,
-    machine: &Machine,
     rs: Option<&std::path::Path>,
     dir: &std::path::Path,
 ) -> Result<Outcome, Failure> {
+    let (name, text, options, mode) = (&case.name, &case.text, &case.options, case.mode);
     let e = |p: [f64; 3]| map.error_at(p);
-    let tag = format!("{name}_{mode}");
-    let answer = match mode {
-        "volumetric" => {
-            compensate_program(text, options, map, DEFAULT_TOLERANCE_MM).map(|c| (c, None))
-        }
-        "contour" => {
-            contour_program(text, options, machine, &contour_options()).map(|(c, p)| (c, Some(p)))
-        }
-        _ => volumetric_and_contour(
-            text,
-            options,
-            map,
-            DEFAULT_TOLERANCE_MM,
-            machine,
-            &contour_options(),
-        )
-        .map(|(c, p)| (c, Some(p))),
-    };
-    let (answer, figures) = match answer {
+    let tag = format!("{}_{mode}", name.replace('/', "_"));
+    let (answer, figures) = match &case.answer {
         Ok((a, p)) => (
             a,
-            p.map(|p| {
+            p.as_ref().map(|p| {
                 format!(
                     "; cutting lines' contour error {:.2} -> {:.2} µm RMS, {:.1} -> {:.1} µm max",
                     p.original.rms_mm * 1e3,

@@ -38,7 +38,9 @@
 //!   optional words in Fanuc and Haas; tested in the unit tests).
 //!
 //! Module `compensated` holds the service's compensated programs to the same two readers
-//! (issue 24, item 3; the check is `valid`, shared with the HTTP tests).
+//! (issue 24, item 3; the check is `valid`, shared with the HTTP tests), and `invariants`
+//! checks issue 39 item 1's safety invariants of the same answers on rs274's canonical moves
+//! with real tool diameters.
 //!
 //! rs274 is required: without it these tests fail saying how to install it, unless
 //! `TRUECUT_NO_RS274=1` asks to run without the oracle (they then say so loudly and pass).
@@ -51,6 +53,7 @@ mod contours;
 mod cutter;
 mod examples;
 mod generate;
+mod invariants;
 mod posts;
 mod rs274;
 mod valid;

@@ -13,7 +13,7 @@ use crate::{compare_moves, counts_line, oracle, oracle_options, rs274};
 /// Tool diameters of the posts, mm, from their comments: T1 (pocket_finish: "T1 D6 FLAT END
 /// MILL"; the other T1 programs use no G41/G42), T3 (haas_drill: "DIA 6.8 DRILL"), T5
 /// (siemens_iso_turnmill: "BALL D8").
-const POST_DIAMETERS_MM: [(u32, f64); 3] = [(1, 6.0), (3, 6.8), (5, 8.0)];
+pub const POST_DIAMETERS_MM: [(u32, f64); 3] = [(1, 6.0), (3, 6.8), (5, 8.0)];
 
 #[test]
 fn real_posts_agree_with_linuxcnc() {

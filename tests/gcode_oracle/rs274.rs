@@ -131,6 +131,25 @@ pub fn run_with_tools(
     file: &Path,
     tools: Option<&Path>,
 ) -> Result<Vec<OracleMove>, String> {
+    let (text, status) = printout(rs274, file, tools)?;
+    parse(&text).map_err(|e| {
+        format!(
+            "{e} (exit {:?}, signal {:?}, {} lines printed, last: {:?})",
+            status.code(),
+            std::os::unix::process::ExitStatusExt::signal(&status),
+            text.lines().count(),
+            text.lines().last()
+        )
+    })
+}
+
+/// rs274's whole printout of `file` (stdout then stderr) with the tool table `tools`, and
+/// how it exited (see [`run`] for the working folder).
+pub fn printout(
+    rs274: &Path,
+    file: &Path,
+    tools: Option<&Path>,
+) -> Result<(String, std::process::ExitStatus), String> {
     let work = file.with_extension("d");
     std::fs::create_dir_all(&work).map_err(|e| format!("{}: {e}", work.display()))?;
     let _one = ONE_AT_A_TIME.lock().unwrap_or_else(|e| e.into_inner());
@@ -146,15 +165,21 @@ pub fn run_with_tools(
         .map_err(|e| format!("cannot run {}: {e}", rs274.display()))?;
     let text =
         String::from_utf8_lossy(&out.stdout).into_owned() + &String::from_utf8_lossy(&out.stderr);
-    parse(&text).map_err(|e| {
-        format!(
-            "{e} (exit {:?}, signal {:?}, {} lines printed, last: {:?})",
-            out.status.code(),
-            std::os::unix::process::ExitStatusExt::signal(&out.status),
-            text.lines().count(),
-            text.lines().last()
-        )
-    })
+    Ok((text, out.status))
+}
+
+/// The dwells of a printout: the N number of each `DWELL(seconds)` call and its seconds
+/// (LinuxCNC reads G4 P in seconds).
+pub fn dwells(text: &str) -> Vec<(Option<usize>, f64)> {
+    text.lines()
+        .filter_map(|raw| {
+            let mut parts = raw.split_whitespace();
+            let (_, n_field, call) = (parts.next()?, parts.next()?, parts.next()?);
+            let args = call.strip_prefix("DWELL(")?;
+            let n = n_field.strip_prefix('N')?.parse::<usize>().ok();
+            Some((n, numbers(args.trim_end_matches(')')).first().copied()?))
+        })
+        .collect()
 }
 
 fn numbers(args: &str) -> Vec<f64> {

@@ -265,8 +265,24 @@ pub fn numbered(text: &str) -> String {
     out
 }
 
+/// `text` as rs274 is given it: [`numbered`], and ended by `M2` when it has no program end
+/// (M2, M30 or a closing `%`; rs274 refuses a file without one, and the held-out contours
+/// have none).
+pub fn for_rs274(text: &str) -> String {
+    let ends = text.trim_end().ends_with('%')
+        || text
+            .lines()
+            .flat_map(word_spans)
+            .any(|w| w.letter == 'M' && matches!(w.value as i64, 2 | 30));
+    let mut out = numbered(text);
+    if !ends {
+        out += "M2\n";
+    }
+    out
+}
+
 /// Why rs274 cannot read even the original, or None.
-fn rs274_cannot(original: &str) -> Option<&'static str> {
+pub fn rs274_cannot(original: &str) -> Option<&'static str> {
     let g87 = original
         .lines()
         .flat_map(word_spans)
@@ -430,7 +446,7 @@ pub fn check(
         (Some(_), Some(why)) => Err(why.to_string()),
         (Some(rs), None) => {
             let file = dir.join(format!("{name}.ngc"));
-            std::fs::write(&file, numbered(answer)).map_err(|e| e.to_string())?;
+            std::fs::write(&file, for_rs274(answer)).map_err(|e| e.to_string())?;
             let tools = dir.join(format!("{name}.tbl"));
             let table: String = (1..=99).map(|t| format!("T{t} P{t} Z0 D0 ;\n")).collect();
             std::fs::write(&tools, table).map_err(|e| e.to_string())?;

@@ -19,8 +19,11 @@
 //!
 //! **How** (module `solve`): projected Levenberg–Marquardt on those residuals, with a
 //! finite-difference Jacobian coloured by the features' path windows. The answer is the
-//! optimum, pruned of features that change nothing worth a block; when it is no better than
-//! the original on the objective, the program is returned unchanged.
+//! optimum, pruned of features that change nothing worth a block; the band is then a
+//! constraint on the nominal model: where the overshoot leaves it where the original stayed
+//! within, every change is scaled back until it stays within (`within_band`). When the
+//! answer is no better than the original on the objective, the program is returned
+//! unchanged.
 //!
 //! Machines with rotary axes are refused ([`Error::Unsupported`]).
 
@@ -61,6 +64,14 @@ pub const SETTLE_TIME_CONSTANTS: f64 = 5.0;
 /// moved less than [`PRUNE_MM`] is dropped: it would add two blocks for no effect a
 /// machine shows.
 pub const PRUNE_FEED: f64 = 0.01;
+
+/// An excursion beyond the band smaller than this (1 nm) is the simulation's arithmetic,
+/// not an overshoot ([`within_band`]), mm.
+pub const BAND_SLACK_MM: f64 = 1e-6;
+
+/// Bisection steps of [`within_band`]'s scale: 7 halvings leave it within 1 % of the
+/// largest that stays within the band, a digit no figure shows.
+pub const BAND_BISECTIONS: usize = 7;
 
 /// A corner point moved, or an arc's radius changed, by less than this (0.1 µm, the last
 /// printed digit of a metric program) is left as programmed.
@@ -271,6 +282,19 @@ pub fn predistort_sided(
             }
         }
     }
+    let alpha = if x.is_empty() {
+        1.0
+    } else {
+        within_band(&shape, &mut x, &mut best, &eval, &mut evaluations)?
+    };
+    if alpha < 1.0 {
+        notes.push(format!(
+            "corner and arc changes scaled to {:.0} % of the optimum: beyond it the overshoot \
+             left the band (both sides of the path where G41/G42 do not give the material \
+             side) where the original stayed within it",
+            alpha * 100.0
+        ));
+    }
     let lines: BTreeMap<usize, Vec<Piece>> = if !x.is_empty() && best.cost() < neutral.cost() {
         shape
             .program(program, &x)
@@ -308,6 +332,63 @@ pub fn predistort_sided(
         evaluations,
         notes,
     })
+}
+
+/// The band is a constraint, not only a term of the objective (issue 39 item 1): where the
+/// answer `x` (evaluated as `best`) leaves it on the nominal model — towards the material,
+/// on both sides where the side is unknown — by more than [`BAND_SLACK_MM`] where the
+/// original stayed within it, every change is scaled back towards none (corner offsets and
+/// radius changes by a factor α, feed fractions towards 1 by it) by bisection over α in
+/// [`BAND_BISECTIONS`] steps, keeping the largest α that stays within. At α = 0 the answer
+/// is the original, which is within by definition. Returns the α kept (1: unchanged).
+fn within_band(
+    shape: &shape::Shape,
+    x: &mut Vec<f64>,
+    best: &mut objective::Eval,
+    eval: &dyn Fn(&[f64]) -> Result<objective::Eval, Error>,
+    evaluations: &mut usize,
+) -> Result<f64, Error> {
+    let over = |e: &objective::Eval| e.runs[0].gouge > BAND_SLACK_MM;
+    if !over(best) {
+        return Ok(1.0);
+    }
+    let mut none = x.clone();
+    for k in 0..shape.features.len() {
+        shape.neutralize(&mut none, k);
+    }
+    let at = |alpha: f64| -> Vec<f64> {
+        x.iter()
+            .zip(&none)
+            .map(|(v, n)| n + alpha * (v - n))
+            .collect()
+    };
+    let (mut lo, mut hi) = (0.0, 1.0);
+    let mut kept: Option<(Vec<f64>, objective::Eval)> = None;
+    for _ in 0..BAND_BISECTIONS {
+        let mid = 0.5 * (lo + hi);
+        let t = at(mid);
+        let e = eval(&t)?;
+        *evaluations += 1;
+        if over(&e) {
+            hi = mid;
+        } else {
+            lo = mid;
+            kept = Some((t, e));
+        }
+    }
+    match kept {
+        Some((t, e)) => {
+            *x = t;
+            *best = e;
+        }
+        None => {
+            *best = eval(&none)?;
+            *evaluations += 1;
+            *x = none;
+            lo = 0.0;
+        }
+    }
+    Ok(lo)
 }
 
 /// The figures of `written` (a program written from an answer and read back, with its own

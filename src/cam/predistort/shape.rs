@@ -518,6 +518,26 @@ impl Shape {
         )
     }
 
+    /// Resets feature `k` of `x` to no change (a corner: f = 1, δ = 0; an arc: ΔR = 0);
+    /// whether it changed anything.
+    pub fn neutralize(&self, x: &mut [f64], k: usize) -> bool {
+        let o = self.offset[k];
+        match self.features[k] {
+            Feature::Corner { .. } => {
+                let was = x[o] != 0.0 || x[o + 1] != 0.0 || x[o + 3] != 1.0;
+                x[o] = 0.0;
+                x[o + 1] = 0.0;
+                x[o + 3] = 1.0;
+                was
+            }
+            Feature::Arc { .. } => {
+                let was = x[o] != 0.0;
+                x[o] = 0.0;
+                was
+            }
+        }
+    }
+
     /// Parameters that change nothing worth a block: a corner whose feed fraction is within
     /// `feed_tol` of 1 and whose point moved less than `move_tol_mm` is reset to no corner
     /// (f = 1, δ = 0), an arc whose radius changes by less than `move_tol_mm` to ΔR = 0.

@@ -103,7 +103,15 @@ fn square_corners_improve_on_every_model_within_the_duration() {
             mf.model
         );
     }
-    assert!(r < 0.6 && x < 0.8, "RMS {r}, max {x}");
+    // Within the band (a constraint since issue 39 item 1: the overshoot at the corners may
+    // not leave it where the original stayed within), the square improves to about 0.70x
+    // RMS and 0.82x max; the unconstrained optimum reached below 0.6x and 0.8x by leaving it.
+    assert!(r < 0.75 && x < 0.85, "RMS {r}, max {x}");
+    assert!(
+        out.compensated.gouge_mm <= BAND_SLACK_MM,
+        "{} mm beyond the band",
+        out.compensated.gouge_mm
+    );
     assert!(t <= DEFAULT_MAX_DURATION_RATIO + 1e-9, "duration {t}");
 }
 
