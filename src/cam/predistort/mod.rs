@@ -18,12 +18,14 @@
 //! ([`SETTLE_TIME_CONSTANTS`]).
 //!
 //! **How** (module `solve`): projected Levenberg–Marquardt on those residuals, with a
-//! finite-difference Jacobian coloured by the features' path windows. The answer is the
-//! optimum, pruned of features that change nothing worth a block; the band is then a
-//! constraint on the nominal model: where the overshoot leaves it where the original stayed
-//! within, every change is scaled back until it stays within (`within_band`). When the
-//! answer is no better than the original on the objective, the program is returned
-//! unchanged.
+//! finite-difference Jacobian coloured by the features' path windows. The band is a
+//! constraint on the nominal model wherever the original stayed within it (issue 39 item
+//! 1), held by the quadratic penalty method: while the optimum leaves it there, the band
+//! hinge's weight grows ([`PENALTY_GROWTH`], at most [`PENALTY_ROUNDS`] times) and the
+//! optimiser goes on from that optimum; should it still leave the band, every change is
+//! scaled back until it stays within (`within_band`). The answer is pruned of features that
+//! change nothing worth a block; when it is no better than the original on the objective,
+//! the program is returned unchanged.
 //!
 //! Machines with rotary axes are refused ([`Error::Unsupported`]).
 
@@ -68,6 +70,17 @@ pub const PRUNE_FEED: f64 = 0.01;
 /// An excursion beyond the band smaller than this (1 nm) is the simulation's arithmetic,
 /// not an overshoot ([`within_band`]), mm.
 pub const BAND_SLACK_MM: f64 = 1e-6;
+
+/// Growth of the band hinge's weight per round of the penalty method (the factor Nocedal
+/// and Wright give for a quadratic penalty): the cost of a violation grows 100× a round.
+pub const PENALTY_GROWTH: f64 = 10.0;
+
+/// Rounds of the penalty method after the first solve (they share the optimiser's
+/// iteration budget with it). After three the hinge's residual
+/// weighs 1,000× [`PENALTY`] (its cost 10⁶×): what still leaves the band then is an
+/// optimiser stall rather than too light a weight, and [`within_band`] scales the answer
+/// back.
+pub const PENALTY_ROUNDS: usize = 3;
 
 /// Bisection steps of [`within_band`]'s scale: 7 halvings leave it within 1 % of the
 /// largest that stays within the band, a digit no figure shows.
@@ -247,28 +260,62 @@ pub fn predistort_sided(
             .map(|w| obj.rows(&obj.bins(*w)))
             .collect(),
     };
-    let eval = |x: &[f64]| obj.eval(&shape.program(program, x).0);
-    let neutral = obj.eval(program)?;
+    let eval_weighted = |x: &[f64], w: f64| obj.eval(&shape.program(program, x).0, w);
+    let eval = |x: &[f64]| eval_weighted(x, 1.0);
+    let neutral = obj.eval(program, 1.0)?;
     let mut notes = Vec::new();
     let (mut x, mut best, iterations, evaluations) = if opts.max_iterations == 0 || shape.is_empty()
     {
         (Vec::new(), neutral.clone(), 0, 1)
     } else {
-        let s = solve::solve(&shape, &layout, opts.max_iterations, &eval)?;
+        // The band as a constraint by the quadratic penalty method: while the optimum leaves
+        // the band where the original stayed within it, the band hinge weighs
+        // PENALTY_GROWTH times more and the optimiser goes on from that optimum.
+        // The rounds share the iteration budget.
+        let (mut start, mut weight) = (shape.x0.clone(), 1.0);
+        let (mut iterations, mut evaluations) = (0, 1);
+        let mut round = 0;
+        let s = loop {
+            let s = solve::solve(
+                &shape,
+                &layout,
+                &start,
+                opts.max_iterations - iterations,
+                &|x| eval_weighted(x, weight),
+            )?;
+            iterations += s.iterations;
+            evaluations += s.evaluations;
+            round += 1;
+            if s.eval.runs[0].gouge <= BAND_SLACK_MM
+                || round > PENALTY_ROUNDS
+                || iterations >= opts.max_iterations
+            {
+                break s;
+            }
+            start = s.x;
+            weight *= PENALTY_GROWTH;
+        };
         if s.stalled {
             notes.push(format!(
-                "stopped after {} optimiser iterations, where no damped step lowered the \
-                 objective further",
-                s.iterations
+                "stopped after {iterations} optimiser iterations, where no damped step lowered \
+                 the objective further",
             ));
-        } else if s.iterations >= opts.max_iterations {
+        } else if iterations >= opts.max_iterations {
             notes.push(format!(
                 "stopped after max_iterations = {} before the objective stopped improving; \
                  more iterations may lower it further",
                 opts.max_iterations
             ));
         }
-        (s.x, s.eval, s.iterations, s.evaluations + 1)
+        if weight > 1.0 {
+            notes.push(format!(
+                "the band was held as a constraint with its weight raised {weight:.0}x where \
+                 the unconstrained optimum left it"
+            ));
+        }
+        // The answer's objective as documented (the band at its own weight).
+        let e = if weight > 1.0 { eval(&s.x)? } else { s.eval };
+        (s.x, e, iterations, evaluations + 1)
     };
     let mut evaluations = evaluations;
     if !x.is_empty() {
@@ -423,7 +470,7 @@ pub fn judge(
             Ok(ModelFigures {
                 model: m.name.clone(),
                 original: stats(&obj.base[k], m.period_s),
-                compensated: stats(&obj.run_with(k, written, written_control)?, m.period_s),
+                compensated: stats(&obj.run_with(k, written, written_control, 1.0)?, m.period_s),
             })
         })
         .collect()

@@ -15,7 +15,11 @@
 //! - the band term: a quadratic hinge on how far a sample lies beyond its bound, starting
 //!   [`HINGE_WIDTH`] of the band inside it, weighted by [`PENALTY`]. The bound towards
 //!   the material (either side where it is not known) is the band, away from it
-//!   [`ENVELOPE_MM`]; where the original already went further, its excursion.
+//!   [`ENVELOPE_MM`]; where the original already went further, its excursion. Where the
+//!   original stayed within a bound the bound is a constraint (issue 39 item 1): its hinge
+//!   takes the extra weight the penalty method of [`super::predistort_sided`] gives it,
+//!   and a sample beyond it is a gouge. Where the original went further, the hinge only
+//!   keeps the answer from going further still, and the RMS and max terms judge it.
 //!
 //! W₀, RMS₀ and max₀ are the original's on the same model. The nominal model weighs as
 //! much as all others together. One more residual holds the duration of the nominal run
@@ -84,7 +88,7 @@ pub struct Acc {
     pub count: usize,
     /// Largest distance on a cutting segment, mm.
     pub max: f64,
-    /// Largest excursion beyond the bound (≤ 0: none), mm.
+    /// Largest excursion beyond a bound the original stayed within (≤ 0: none), mm.
     pub gouge: f64,
     /// Periods of the command.
     pub periods: usize,
@@ -144,6 +148,11 @@ pub struct Objective<'a> {
     max_ratio: f64,
     allowed_in: Vec<f64>,
     allowed_out: Vec<f64>,
+    /// Per bin: the original stayed within the band (towards the material) on every model,
+    /// so the band is a constraint there.
+    hard_in: Vec<bool>,
+    /// Per bin: the original stayed within [`ENVELOPE_MM`] away from the material.
+    hard_out: Vec<bool>,
     /// The original's run on each model.
     pub base: Vec<Acc>,
     nblocks: usize,
@@ -172,6 +181,8 @@ impl<'a> Objective<'a> {
             max_ratio,
             allowed_in: vec![f64::INFINITY; nb],
             allowed_out: vec![f64::INFINITY; nb],
+            hard_in: vec![false; nb],
+            hard_out: vec![false; nb],
             base: Vec::new(),
             nblocks: original.blocks.len(),
         };
@@ -183,6 +194,8 @@ impl<'a> Objective<'a> {
             let ex_out = base.iter().map(|a| a.ex_out[b]).fold(0.0, f64::max);
             o.allowed_in[b] = band_mm.max(ex_in);
             o.allowed_out[b] = ENVELOPE_MM.max(ex_out);
+            o.hard_in[b] = ex_in <= band_mm;
+            o.hard_out[b] = ex_out <= ENVELOPE_MM;
         }
         o.base = base;
         Ok(o)
@@ -204,16 +217,18 @@ impl<'a> Objective<'a> {
 
     /// Simulates `program` on model `k` and accumulates its samples.
     pub fn run(&self, k: usize, program: &Program) -> Result<Acc, Error> {
-        self.run_with(k, program, self.control)
+        self.run_with(k, program, self.control, 1.0)
     }
 
     /// [`Objective::run`] of a program with its own path-control modes (a program text
-    /// written from the answer and read back).
+    /// written from the answer and read back); `band_weight` multiplies the band hinge's
+    /// residual where the band is a constraint (1: the objective as documented).
     pub fn run_with(
         &self,
         k: usize,
         program: &Program,
         control: &PathControl,
+        band_weight: f64,
     ) -> Result<Acc, Error> {
         let m = &self.models[k];
         let mut cmd = interpolate_with(program, control, &m.machine, m.period_s, MAX_PERIODS)?;
@@ -259,6 +274,7 @@ impl<'a> Objective<'a> {
             ]
         };
         let hinge_start = HINGE_WIDTH * self.band_mm;
+        let w2 = band_weight * band_weight;
         let (mut cursor, mut s_prev) = (0, 0.0);
         for i in 0..n {
             let q = tip(i);
@@ -306,12 +322,16 @@ impl<'a> Objective<'a> {
                 a.ex_out[b] = a.ex_out[b].max(ex_out);
                 let over_in = ex_in - (self.allowed_in[b] - hinge_start);
                 let over_out = ex_out - (self.allowed_out[b] - hinge_start);
-                let hin = over_in.max(0.0).powi(2) + over_out.max(0.0).powi(2);
+                let w_in = if self.hard_in[b] { w2 } else { 1.0 };
+                let w_out = if self.hard_out[b] { w2 } else { 1.0 };
+                let hin = w_in * over_in.max(0.0).powi(2) + w_out * over_out.max(0.0).powi(2);
                 a.pen[b] += h * w * hin;
-                a.gouge = a
-                    .gouge
-                    .max(ex_in - self.allowed_in[b])
-                    .max(ex_out - self.allowed_out[b]);
+                if self.hard_in[b] {
+                    a.gouge = a.gouge.max(ex_in - self.allowed_in[b]);
+                }
+                if self.hard_out[b] {
+                    a.gouge = a.gouge.max(ex_out - self.allowed_out[b]);
+                }
             }
         }
         if !a.gouge.is_finite() {
@@ -320,10 +340,11 @@ impl<'a> Objective<'a> {
         Ok(a)
     }
 
-    /// The objective of `program`.
-    pub fn eval(&self, program: &Program) -> Result<Eval, Error> {
+    /// The objective of `program`, the band hinge's residual multiplied by `band_weight`
+    /// where the band is a constraint (1: the objective as documented).
+    pub fn eval(&self, program: &Program, band_weight: f64) -> Result<Eval, Error> {
         let runs: Vec<Acc> = (0..self.models.len())
-            .map(|k| self.run(k, program))
+            .map(|k| self.run_with(k, program, self.control, band_weight))
             .collect::<Result<_, _>>()?;
         let km = self.models.len();
         let mut r = vec![0.0; 3 * km * self.nb + 1];

@@ -85,16 +85,17 @@ pub(super) fn dot_sparse(a: &[(usize, f64)], b: &[(usize, f64)]) -> f64 {
     s
 }
 
-/// Minimises Σ r² of `eval(x)` over the box of `shape` from `shape.x0`, at most
+/// Minimises Σ r² of `eval(x)` over the box of `shape` from `x0` (within the box), at most
 /// `max_iterations` Jacobians.
 pub fn solve(
     shape: &Shape,
     layout: &Layout,
+    x0: &[f64],
     max_iterations: usize,
     eval: &dyn Fn(&[f64]) -> Result<Eval, Error>,
 ) -> Result<Solved, Error> {
     let np = shape.len();
-    let mut x = shape.x0.clone();
+    let mut x = x0.to_vec();
     let mut cur = eval(&x)?;
     let mut evaluations = 1;
     let mut iterations = 0;

@@ -74,7 +74,13 @@ fn check_invariants(program: &Program, out: &Predistorted) {
 fn square_corners_improve_on_every_model_within_the_duration() {
     let m = machine_kv(40.0);
     let p = read(SQUARE);
-    let out = predistort(&m, &p, &opts()).unwrap();
+    // The route's iteration budget: with half of it the optimiser stops before the band is
+    // met and the answer is scaled back (about 0.70x RMS, 0.82x max).
+    let o = PredistortOptions {
+        max_iterations: super::super::contour::MAX_ITERATIONS,
+        ..opts()
+    };
+    let out = predistort(&m, &p, &o).unwrap();
     check_invariants(&p, &out);
     assert!(!out.lines.is_empty(), "{:?}", out.notes);
     let r = out.compensated.rms_distance_mm / out.original.rms_distance_mm;
@@ -90,6 +96,7 @@ fn square_corners_improve_on_every_model_within_the_duration() {
         out.iterations,
         out.evaluations
     );
+    eprintln!("  notes: {:?}", out.notes);
     for mf in &out.models {
         eprintln!(
             "  {}: RMS {:.3}x max {:.3}x",
@@ -103,10 +110,9 @@ fn square_corners_improve_on_every_model_within_the_duration() {
             mf.model
         );
     }
-    // Within the band (a constraint since issue 39 item 1: the overshoot at the corners may
-    // not leave it where the original stayed within), the square improves to about 0.70x
-    // RMS and 0.82x max; the unconstrained optimum reached below 0.6x and 0.8x by leaving it.
-    assert!(r < 0.75 && x < 0.85, "RMS {r}, max {x}");
+    // Within the band where the original stayed within it (a constraint since issue 39
+    // item 1), about 0.32x RMS and 0.71x max.
+    assert!(r < 0.6 && x < 0.8, "RMS {r}, max {x}");
     assert!(
         out.compensated.gouge_mm <= BAND_SLACK_MM,
         "{} mm beyond the band",
