@@ -12,7 +12,7 @@
 //! same run.
 //!
 //! Run: `cargo bench --bench corner_grid`; `-- stair` runs one program, `-- heldout` the
-//! held-out set only.
+//! held-out set only; `-- --notes` prints each answer's notes and warnings.
 
 use std::time::Instant;
 
@@ -130,6 +130,11 @@ fn run(name: &str, text: &str, m: &Machine, period_s: f64, tally: &mut Tally) {
         out.blocks,
         wall / base
     );
+    if std::env::args().any(|a| a == "--notes") {
+        for n in p.notes.iter().chain(&out.warnings) {
+            println!("    {n}");
+        }
+    }
 }
 
 /// The `(machine: k=v …)` header of a held-out program.

@@ -168,9 +168,22 @@ fn contour_pass(
     let mut comp: Option<MaterialSide> = None;
     let mut sides: Vec<Option<MaterialSide>> = vec![None; raw_lines.len() + 1];
     let mut after_comp = false;
+    // The axes the written program can state at the end of each line: those the line names,
+    // and those an earlier line placed absolutely (the emitter writes no word for an axis
+    // whose position the program never gave: the machine may be anywhere on it). A corner
+    // in a level with an unplaced axis is not moved, only slowed.
+    let mut known = [false; 3];
+    let mut placed: Vec<[bool; 3]> = vec![[false; 3]; raw_lines.len() + 1];
     let kinds: Vec<Kind> = std::iter::once(Kind::Other)
         .chain(raw_lines.iter().enumerate().map(|(idx, raw)| {
             let info = probe.begin(raw);
+            if let Some(f) = frames.get(idx).filter(|f| f.line == idx + 1) {
+                let relative = f.incremental && !info.machine_move;
+                for k in 0..3 {
+                    placed[idx + 1][k] = info.named[k] || known[k] || relative;
+                    known[k] = f.known[k] && (known[k] || (info.named[k] && !relative));
+                }
+            }
             let mut comp_word = false;
             for s in info.spans.iter().filter(|s| s.letter == 'G') {
                 match (s.value * 10.0).round() as i64 {
@@ -209,7 +222,8 @@ fn contour_pass(
         .collect();
     let keep = |l: usize| kinds.get(l).is_none_or(|k| *k != Kind::Feed);
     let side = |l: usize| sides.get(l).copied().flatten();
-    let mut result = predistort_sided(machine, &program, &control, opts, &keep, &side)?;
+    let placed = |l: usize| placed.get(l).copied().unwrap_or([false; 3]);
+    let mut result = predistort_sided(machine, &program, &control, opts, &keep, &side, &placed)?;
     // The written answer's band excursion may exceed the optimiser's by the rounding of its
     // points (the servo is linear); beyond that, the program is returned as written.
     let band_noise_mm = super::emit::rounding_mm(frames.iter().any(|f| f.inch));

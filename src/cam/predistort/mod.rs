@@ -183,6 +183,7 @@ pub fn predistort(
         opts,
         &|_| false,
         &|_| None,
+        &|_| [true; 3],
     )
 }
 
@@ -199,7 +200,9 @@ fn stats(a: &objective::Acc, period_s: f64) -> ErrorStats {
 /// Rewrites the cutting blocks of `program` (read with its path-control modes `control`)
 /// so that `machine`'s simulated servo follows the original path over the model set
 /// (module docs). Lines for which `keep(line)` holds are written as programmed; `side(line)`
-/// is the material side where G41/G42 say it. Returns the pieces of the rewritten lines,
+/// is the material side where G41/G42 say it; `placed(line)` the axes the written program
+/// can state at the end of that line (a corner is moved only where both axes of its level
+/// are). Returns the pieces of the rewritten lines,
 /// the figures of the original and the answer on each model (RMS and max distance of the
 /// simulated tool tip to the original path, mm; duration, s), and notes.
 /// Errors: [`Error::Motion`] for programs the motion core refuses, [`Error::Option`] for
@@ -211,6 +214,7 @@ pub fn predistort_sided(
     opts: &PredistortOptions,
     keep: &dyn Fn(usize) -> bool,
     side: &dyn Fn(usize) -> Option<MaterialSide>,
+    placed: &dyn Fn(usize) -> [bool; 3],
 ) -> Result<Predistorted, Error> {
     opts.check()?;
     if !matches!(machine.kinematics, Kinematics::Xyz) {
@@ -251,7 +255,18 @@ pub fn predistort_sided(
             // A full circle starts where it ends; a line must go somewhere.
             && (matches!(b.motion, Motion::Arc { .. }) || b.start.xyz != b.end.xyz)
     };
-    let shape = shape::Shape::new(program, &obj.path, machine, &movable, &near, opts.band_mm);
+    let placed_xy = |i: usize| {
+        let p = placed(program.blocks[i].line);
+        p[0] && p[1]
+    };
+    let shape = shape::Shape::new(
+        program,
+        &obj.path,
+        machine,
+        (&movable, &placed_xy),
+        &near,
+        opts.band_mm,
+    );
     let layout = solve::Layout {
         bins: shape.window.iter().map(|w| obj.bins(*w)).collect(),
         rows: shape

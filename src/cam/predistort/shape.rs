@@ -152,13 +152,15 @@ fn feed_of(b: &Block) -> Option<f64> {
 
 impl Shape {
     /// The features of `program`'s blocks for which `movable(block)` holds (cutting,
-    /// G94, the only block of its line), on `machine`; `path` gives the windows, `near`
-    /// the original's errors; `band_mm` the smallest reach.
+    /// G94, the only block of its line), on `machine`; a corner at the end of a block for
+    /// which `placed_xy(block)` fails (the written program cannot state X or Y there) is
+    /// only slowed. `path` gives the windows, `near` the original's errors; `band_mm` the
+    /// smallest reach.
     pub fn new(
         program: &Program,
         path: &Path,
         machine: &Machine,
-        movable: &dyn Fn(usize) -> bool,
+        (movable, placed_xy): (&dyn Fn(usize) -> bool, &dyn Fn(usize) -> bool),
         near: &Near,
         band_mm: f64,
     ) -> Shape {
@@ -218,8 +220,9 @@ impl Shape {
                     } else {
                         [0.0; 3]
                     };
-                    let planar =
-                        level(&seg.geom).is_some() && level(&seg.geom) == level(&next.geom);
+                    let planar = level(&seg.geom).is_some()
+                        && level(&seg.geom) == level(&next.geom)
+                        && placed_xy(i);
                     let reach = if planar {
                         REACH_FACTOR * near.max_dist[i].max(near.max_dist[i + 1]).max(band_mm)
                     } else {

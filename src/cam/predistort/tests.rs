@@ -174,6 +174,7 @@ fn kept_lines_stay_and_plunges_stay_on_their_axis() {
         &opts(),
         &|l| l == 4,
         &|_| None,
+        &|_| [true; 3],
     )
     .unwrap();
     assert!(!out.lines.contains_key(&4));

@@ -160,3 +160,28 @@ fn volumetric_and_contour_name_source_lines() {
     );
     assert!(!lines[hole].contains("G1"));
 }
+
+/// A corner whose level has an axis the program never placed (here Y, until line 3) cannot
+/// be moved: the written program could not say where on Y (the machine may be anywhere on
+/// it), so the optimiser only slows it, and what is written is what was judged.
+#[test]
+fn a_corner_on_an_unplaced_axis_is_only_slowed() {
+    let text = "G90 G17 G94\nG1 X2 F2000\nG1 Y2\nG1 X4\nG1 Y4\nG1 X6\n";
+    let (out, p) = contour_program(text, &ReadOptions::default(), &cascade(), &popts()).unwrap();
+    assert!(
+        !out.warnings
+            .iter()
+            .any(|w| w.contains("judging the written")),
+        "{:?}",
+        out.warnings
+    );
+    // Line 2's pieces stay on Y = 0 (no Y word can be written there).
+    for piece in p.lines.get(&2).into_iter().flatten() {
+        let Piece::Line { end, .. } = *piece else {
+            panic!("an arc on a line")
+        };
+        assert_eq!(end[1], 0.0, "line 2 moved on Y: {piece:?}");
+    }
+    // The corners after Y is placed (lines 3-5) may move.
+    assert!(p.lines.len() > 1, "{:?}", p.notes);
+}
