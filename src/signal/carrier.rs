@@ -273,9 +273,16 @@ pub fn strongest_line(r: &[f64]) -> Option<(f64, f64)> {
     }
     let len = 4 * n;
     let fft = super::fft::forward(len);
+    // The window, per length once for the process (one cosine per sample: at 2,025 samples
+    // as much as the transform itself, for every strong mode of every decomposition).
+    let hann = super::fft::table(super::fft::Table::Hann, n, || {
+        (0..n)
+            .map(|t| 0.5 - 0.5 * (2.0 * std::f64::consts::PI * t as f64 / n as f64).cos())
+            .collect()
+    });
     let mut buf = vec![0.0; len];
-    for (t, (b, &v)) in buf.iter_mut().zip(r).enumerate() {
-        *b = v * (0.5 - 0.5 * (2.0 * std::f64::consts::PI * t as f64 / n as f64).cos());
+    for ((b, &v), &w) in buf.iter_mut().zip(r).zip(hann.iter()) {
+        *b = v * w;
     }
     let mut spec = fft.make_output_vec();
     fft.process(&mut buf, &mut spec).ok()?;

@@ -39,6 +39,8 @@ pub(crate) enum Table {
     Eigenvalues(usize),
     /// The DCT-II twiddles of `whittaker::dct_power`: cos and sin of −πk/(2n), interleaved.
     DctTwiddles,
+    /// The Hann window 0.5 − 0.5 cos(2πt/n) of `carrier::strongest_line`.
+    Hann,
 }
 
 /// Tables kept ([`table`]): the most recent few, so memory stays bounded whatever lengths

@@ -42,7 +42,8 @@ use crate::motion::program::{Feed, Motion};
 use crate::motion::{self, Kinematics, Machine, PathControl, Program};
 pub use models::{KFF_SPREAD, KV_SPREAD, Model, PERIOD_FACTOR, model_set};
 pub use objective::{
-    BIN_MM, ENVELOPE_MM, HINGE_WIDTH, MAX_BINS, MAX_TARGET, PENALTY, RMS_TARGET, TIME_MARGIN,
+    BIN_MM, ENVELOPE_MM, FOOT_SPREAD, HINGE_WIDTH, MAX_BINS, MAX_TARGET, PENALTY, RMS_TARGET,
+    TIME_MARGIN,
 };
 pub use options::{
     BAND_RANGE_MM, DEFAULT_BAND_MM, DEFAULT_MAX_DURATION_RATIO, MAX_DURATION_RATIO,

@@ -59,6 +59,14 @@ pub const HINGE_WIDTH: f64 = 0.2;
 /// ten times the pull of the error that would cross it.
 pub const PENALTY: f64 = 10.0;
 
+/// How far along the path, as a multiple of a sample's distance d, its foot may move for
+/// a small change of the run: near a corner of interior angle α the nearest points on the
+/// two legs lie 2·d / tan(α/2) apart, 7.5·d at 30°, the sharpest corner of the corner grid
+/// and the held-out set. A sample counts against the band as a constraint only where the
+/// original stayed within it over that stretch, so a corner's error attributed a few bins
+/// over is not read as a new excursion.
+pub const FOOT_SPREAD: f64 = 7.5;
+
 /// The time hinge starts this share of the original's duration below the limit (2 %): the
 /// other models' durations spread about that much around the nominal's.
 pub const TIME_MARGIN: f64 = 0.02;
@@ -148,11 +156,12 @@ pub struct Objective<'a> {
     max_ratio: f64,
     allowed_in: Vec<f64>,
     allowed_out: Vec<f64>,
-    /// Per bin: the original stayed within the band (towards the material) on every model,
-    /// so the band is a constraint there.
-    hard_in: Vec<bool>,
-    /// Per bin: the original stayed within [`ENVELOPE_MM`] away from the material.
-    hard_out: Vec<bool>,
+    /// Bins before each bin where the original left the band (towards the material) on
+    /// some model (a prefix count, `nb + 1` long): the band is a constraint where there
+    /// are none over a sample's [`FOOT_SPREAD`] stretch.
+    soft_in: Vec<usize>,
+    /// The same for [`ENVELOPE_MM`] away from the material.
+    soft_out: Vec<usize>,
     /// The original's run on each model.
     pub base: Vec<Acc>,
     nblocks: usize,
@@ -181,8 +190,8 @@ impl<'a> Objective<'a> {
             max_ratio,
             allowed_in: vec![f64::INFINITY; nb],
             allowed_out: vec![f64::INFINITY; nb],
-            hard_in: vec![false; nb],
-            hard_out: vec![false; nb],
+            soft_in: vec![0; nb + 1],
+            soft_out: vec![0; nb + 1],
             base: Vec::new(),
             nblocks: original.blocks.len(),
         };
@@ -194,8 +203,8 @@ impl<'a> Objective<'a> {
             let ex_out = base.iter().map(|a| a.ex_out[b]).fold(0.0, f64::max);
             o.allowed_in[b] = band_mm.max(ex_in);
             o.allowed_out[b] = ENVELOPE_MM.max(ex_out);
-            o.hard_in[b] = ex_in <= band_mm;
-            o.hard_out[b] = ex_out <= ENVELOPE_MM;
+            o.soft_in[b + 1] = o.soft_in[b] + usize::from(ex_in > band_mm);
+            o.soft_out[b + 1] = o.soft_out[b] + usize::from(ex_out > ENVELOPE_MM);
         }
         o.base = base;
         Ok(o)
@@ -302,6 +311,17 @@ impl<'a> Objective<'a> {
             let w = 0.5 * (back + fwd);
             let d = foot.dist;
             let (ex_in, ex_out) = excursions(&foot, seg.side);
+            // The band is a constraint for this sample where the original stayed within it
+            // over the stretch its foot may move by (FOOT_SPREAD).
+            let hard = |prefix: &[usize], ex: f64| {
+                let w = FOOT_SPREAD * ex;
+                let lo = ((foot.s - w) / self.bin_mm - 0.5).floor().max(0.0) as usize;
+                let hi =
+                    (((foot.s + w) / self.bin_mm - 0.5).ceil().max(0.0) as usize + 1).min(nb - 1);
+                let lo = lo.min(hi);
+                prefix[hi + 1] == prefix[lo]
+            };
+            let (hard_in, hard_out) = (hard(&self.soft_in, ex_in), hard(&self.soft_out, ex_out));
             a.weight += w;
             a.wsq += w * d * d;
             a.psq += d * d;
@@ -322,14 +342,14 @@ impl<'a> Objective<'a> {
                 a.ex_out[b] = a.ex_out[b].max(ex_out);
                 let over_in = ex_in - (self.allowed_in[b] - hinge_start);
                 let over_out = ex_out - (self.allowed_out[b] - hinge_start);
-                let w_in = if self.hard_in[b] { w2 } else { 1.0 };
-                let w_out = if self.hard_out[b] { w2 } else { 1.0 };
+                let w_in = if hard_in { w2 } else { 1.0 };
+                let w_out = if hard_out { w2 } else { 1.0 };
                 let hin = w_in * over_in.max(0.0).powi(2) + w_out * over_out.max(0.0).powi(2);
                 a.pen[b] += h * w * hin;
-                if self.hard_in[b] {
+                if hard_in {
                     a.gouge = a.gouge.max(ex_in - self.allowed_in[b]);
                 }
-                if self.hard_out[b] {
+                if hard_out {
                     a.gouge = a.gouge.max(ex_out - self.allowed_out[b]);
                 }
             }
