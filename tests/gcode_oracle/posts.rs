@@ -15,6 +15,20 @@ use crate::{compare_moves, counts_line, oracle, oracle_options, rs274};
 /// (siemens_iso_turnmill: "BALL D8").
 pub const POST_DIAMETERS_MM: [(u32, f64); 3] = [(1, 6.0), (3, 6.8), (5, 8.0)];
 
+/// rs274's tool table of [`POST_DIAMETERS_MM`] (other tools diameter 0), written to
+/// `dir/name`; its path.
+pub fn post_tool_table(dir: &Path, name: &str) -> std::path::PathBuf {
+    let table = dir.join(name);
+    let by_tool = |t: u32| {
+        POST_DIAMETERS_MM
+            .iter()
+            .find(|(n, _)| *n == t)
+            .map_or(0.0, |(_, d)| *d)
+    };
+    std::fs::write(&table, rs274::tool_table(&by_tool)).unwrap();
+    table
+}
+
 #[test]
 fn real_posts_agree_with_linuxcnc() {
     let Some(rs) = oracle() else { return };
@@ -28,14 +42,7 @@ fn real_posts_agree_with_linuxcnc() {
     files.sort();
     assert!(!files.is_empty(), "no programs in {}", folder.display());
     let dir = tempfile::tempdir().unwrap();
-    let table = dir.path().join("posts.tbl");
-    let by_tool = |t: u32| {
-        POST_DIAMETERS_MM
-            .iter()
-            .find(|(n, _)| *n == t)
-            .map_or(0.0, |(_, d)| *d)
-    };
-    std::fs::write(&table, rs274::tool_table(&by_tool)).unwrap();
+    let table = post_tool_table(dir.path(), "posts.tbl");
     let options = oracle_options(&POST_DIAMETERS_MM);
     let (mut total, mut failures) = (Counts::default(), Vec::new());
     for path in &files {

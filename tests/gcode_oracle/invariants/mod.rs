@@ -53,7 +53,6 @@ use truecut::motion::gcode::{Block, Feed, LineFrame, Motion, Plane, Pose, word_s
 use truecut::motion::{DEFAULT_PERIOD_S, Machine, PathControl, Program, predict_program_with};
 
 use crate::compensated::{Answered, answers, setup};
-use crate::posts::POST_DIAMETERS_MM;
 use crate::rs274;
 
 /// How far below a level's floor a point may go, mm (issue 39: 1 µm).
@@ -405,14 +404,7 @@ fn every_compensated_answer_keeps_the_safety_invariants() {
     let Some(rs) = crate::oracle() else { return };
     let s = setup();
     let dir = tempfile::tempdir().unwrap();
-    let table = dir.path().join("tools.tbl");
-    let by_tool = |t: u32| {
-        POST_DIAMETERS_MM
-            .iter()
-            .find(|(n, _)| *n == t)
-            .map_or(0.0, |(_, d)| *d)
-    };
-    std::fs::write(&table, rs274::tool_table(&by_tool)).unwrap();
+    let table = crate::posts::post_tool_table(dir.path(), "tools.tbl");
     let all: &[Answered] = answers();
     let volumetric_lines = |name: &str| {
         all.iter()

@@ -10,8 +10,6 @@ use truecut::motion::ReadOptions;
 use super::Rule;
 use super::check::check_case;
 use crate::compensated::{Answered, setup};
-use crate::posts::POST_DIAMETERS_MM;
-use crate::rs274;
 
 /// `text` with line `line` (1-based) replaced by `with` (each from source line `line`), and
 /// the source line of every line.
@@ -45,14 +43,7 @@ fn program(name: &str) -> String {
 fn each_invariant_check_catches_its_break() {
     let Some(rs) = crate::oracle() else { return };
     let dir = tempfile::tempdir().unwrap();
-    let table = dir.path().join("tools.tbl");
-    let by_tool = |t: u32| {
-        POST_DIAMETERS_MM
-            .iter()
-            .find(|(n, _)| *n == t)
-            .map_or(0.0, |(_, d)| *d)
-    };
-    std::fs::write(&table, rs274::tool_table(&by_tool)).unwrap();
+    let table = crate::posts::post_tool_table(dir.path(), "tools.tbl");
     let (pocket, corners) = (program("pocket_finish.nc"), program("corners_finish.nc"));
     let s = |v: &[&str]| v.iter().map(|x| x.to_string()).collect::<Vec<_>>();
     // The circle N60 of corners_finish (centre (-10, 15), R10, G3 from (0, 15)) as chords.
