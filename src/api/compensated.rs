@@ -157,6 +157,10 @@ pub struct ProgramRequest {
     /// Machine home for G28/G30/G53: [x, y, z] mm in machine coordinates.
     #[serde(default)]
     pub home: Option<[f64; 3]>,
+    /// With `contour`: `"stored"` (default) simulates with the effects stored with the
+    /// machine, `"none"` with its servo model alone.
+    #[serde(default)]
+    pub effects: Option<String>,
 }
 
 impl ProgramRequest {
@@ -216,6 +220,8 @@ pub struct ContourFigures {
     /// The returned program on every model of the set (nominal first): ratios to the
     /// original on the same model.
     pub models: Vec<ModelRatios>,
+    /// The version of the machine's stored effects every model included (null: none).
+    pub effects_version: Option<i64>,
 }
 
 /// How the returned program does on one model of the set.
@@ -377,10 +383,16 @@ async fn compensated_program(
         None
     };
     let sim = if contour {
-        Some(machine_for_simulation(&machine, &def?)?)
+        let def = def?;
+        let mut m = machine_for_simulation(&machine, &def)?;
+        m.effects =
+            super::effects::for_simulation(&state, &machine, &def, req.effects.as_deref()).await?;
+        Some(m)
     } else {
+        super::effects::wants_stored(req.effects.as_deref())?;
         None
     };
+    let effects_version = sim.as_ref().and_then(|m| m.effects.version());
     let period_s = req.period_s.unwrap_or(DEFAULT_PERIOD_S);
     let popts = cam::PredistortOptions {
         period_s,
@@ -434,6 +446,7 @@ async fn compensated_program(
                         gouge_mm: m.compensated.gouge_mm,
                     })
                     .collect(),
+                effects_version,
             };
             Ok((note(out), Some(figures)))
         })

@@ -55,6 +55,10 @@ pub struct ContourRequest {
     /// Machine home for G28/G30/G53: [x, y, z] mm in machine coordinates.
     #[serde(default)]
     pub home: Option<[f64; 3]>,
+    /// `"stored"` (default): simulate with the effects stored with the machine; `"none"`:
+    /// with its servo model alone.
+    #[serde(default)]
+    pub effects: Option<String>,
 }
 
 impl ContourRequest {
@@ -155,7 +159,9 @@ async fn contour_error(
         ));
     }
     let options = req.read_options()?.with_reference_points(def.home, def.g30);
-    let m = machine_for_simulation(&machine, &def)?;
+    let mut m = machine_for_simulation(&machine, &def)?;
+    m.effects =
+        super::effects::for_simulation(&state, &machine, &def, req.effects.as_deref()).await?;
     let body = state
         .jobs
         .run(move || {

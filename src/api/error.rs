@@ -349,6 +349,7 @@ impl From<gap::Error> for ApiError {
             gap::Error::TooManySamples { .. } => ApiError::payload_too_large(e.to_string()),
             gap::Error::MissingAxes { .. } => ApiError::unprocessable(e.to_string()),
             gap::Error::Align(_) => ApiError::unprocessable(e.to_string()),
+            gap::Error::Effects(_) => ApiError::unprocessable(e.to_string()),
         }
     }
 }
@@ -386,7 +387,7 @@ impl From<motion::Error> for ApiError {
             E::InvalidServo { .. } | E::UnstableServo { .. } | E::InvalidMachine(_) => {
                 ApiError::unprocessable(format!("machine definition: {e}"))
             }
-            E::NotSimulable { .. } => ApiError::unprocessable(e.to_string()),
+            E::NotSimulable { .. } | E::Effects(_) => ApiError::unprocessable(e.to_string()),
             E::BadDefinition { .. } => ApiError::bad_request(e.to_string()),
             E::InvalidPeriod(_)
             | E::PeriodOutOfRange(_)

@@ -10,7 +10,7 @@ use axum::extract::{Request, State};
 use axum::response::{IntoResponse, Response};
 use axum::routing::post;
 use serde::{Deserialize, Serialize};
-use serde_json::Value;
+use serde_json::{Value, json};
 
 use super::AppState;
 use super::auth::Role;
@@ -25,8 +25,9 @@ use crate::gap::{
     diagnose_motion_request, motion_inputs, part_answer,
 };
 use crate::jobs::{Progress, Runner};
+use crate::gap::adopted::EffectSet;
 use crate::motion::{
-    Machine, ServoAxes, check_period, interpolate_with, machine_for_simulation, parse_modes,
+    Effects, Machine, MachineDef, ServoAxes, check_period, interpolate_with, machine_for_simulation, parse_modes,
     servo_axes, stored_definition,
 };
 
@@ -82,9 +83,13 @@ pub fn runner(state: AppState) -> Runner {
             .block_on(require_machine(&state, &machine))
             .map_err(sentence)?;
         let mdef = stored_definition(&machine, &def).map_err(|e| sentence(e.into()))?;
-        let m = servo_axes(&machine, &mdef).map_err(|e| sentence(e.into()))?;
+        let (m, prior) = handle
+            .block_on(motion_axes(&state, &machine, &mdef, &req))
+            .map_err(sentence)?;
         p.set(0.05);
-        diagnose_motion_request(&m, &req).map_err(|e| sentence(e.into()))
+        diagnose_motion_request(&m, &req)
+            .map(|a| with_accept(a, &m, prior.as_ref()))
+            .map_err(|e| sentence(e.into()))
     })
 }
 
@@ -105,11 +110,11 @@ async fn gap_diagnosis(
     match req.domain.as_str() {
         "motion" => {
             let mdef = stored_definition(&machine, &def)?;
-            let m = servo_axes(&machine, &mdef)?;
+            let (m, prior) = motion_axes(&state, &machine, &mdef, &req).await?;
             if req.gcode.is_some() {
                 let sim = machine_for_simulation(&machine, &mdef)?;
                 let reference = (mdef.home, mdef.g30);
-                return motion_from_program(&state, sim, m, req, reference).await;
+                return motion_from_program(&state, sim, (m, prior), req, reference).await;
             }
             let n = req.commanded.as_ref().map_or(0, Vec::len);
             if req.measured_t.is_some() {
@@ -148,7 +153,9 @@ async fn gap_diagnosis(
             }
             let answer = state
                 .jobs
-                .run(move || diagnose_motion_request(&m, &req))
+                .run(move || {
+                    diagnose_motion_request(&m, &req).map(|a| with_accept(a, &m, prior.as_ref()))
+                })
                 .await??;
             Ok(ApiJson(stamp(answer)).into_response())
         }
@@ -169,7 +176,7 @@ async fn gap_diagnosis(
 async fn motion_from_program(
     state: &AppState,
     sim: Machine,
-    m: ServoAxes,
+    (m, prior): (ServoAxes, Option<EffectSet>),
     req: GapRequest,
     (home, g30): (Option<[f64; 3]>, Option<[f64; 3]>),
 ) -> ApiResult<Response> {
@@ -235,10 +242,55 @@ async fn motion_from_program(
                     )
                 });
             }
-            Ok(diagnose_motion_program(&m, &req, Some(&cmd))?)
+            let answer = diagnose_motion_program(&m, &req, Some(&cmd))?;
+            Ok(with_accept(answer, &m, prior.as_ref()))
         })
         .await??;
     Ok(ApiJson(stamp(answer)).into_response())
+}
+
+/// The servo axes of a motion diagnosis with the effects its request asks for (stored, the
+/// default, or none), and the stored set for the answer's `accept`.
+async fn motion_axes(
+    state: &AppState,
+    machine: &Id,
+    mdef: &MachineDef,
+    req: &GapRequest,
+) -> ApiResult<(ServoAxes, Option<EffectSet>)> {
+    let mut m = servo_axes(machine, mdef)?;
+    let stored =
+        super::effects::for_simulation_set(state, machine, mdef, req.effects.as_deref()).await?;
+    Ok(match stored {
+        Some((s, set)) => {
+            m.effects = Effects(Some(s));
+            (m, Some(set))
+        }
+        None => (m, None),
+    })
+}
+
+/// A motion answer with `effects_version` (the stored effects the simulation included, or
+/// null) and `accept`: the body of `PUT /v1/machines/{machine}/effects` that adopts the
+/// steps' effects with their fitted parameters, after those already stored (the steps were
+/// fitted on top of them, and stored effects add up as the steps do).
+fn with_accept(mut answer: Value, m: &ServoAxes, prior: Option<&EffectSet>) -> Value {
+    let mut effects: Vec<Value> = prior
+        .map(|p| p.effects.iter().map(|e| json!(e)).collect())
+        .unwrap_or_default();
+    let steps = answer.get("steps").and_then(Value::as_array);
+    for s in steps.into_iter().flatten() {
+        effects.push(json!({"effect": s["effect"], "params": s["params"]}));
+    }
+    let now = time::OffsetDateTime::now_utc()
+        .format(&time::format_description::well_known::Rfc3339)
+        .unwrap_or_default();
+    let source = match m.effects.version() {
+        Some(v) => format!("gap diagnosis of {now} on effects version {v}"),
+        None => format!("gap diagnosis of {now}"),
+    };
+    answer["effects_version"] = json!(m.effects.version());
+    answer["accept"] = json!({"effects": effects, "source": source});
+    answer
 }
 
 /// Most interpolation periods read from a program for a motion diagnosis.

@@ -199,6 +199,10 @@ pub struct SimulateRequest {
     /// nominal circle are evaluated.
     #[serde(default)]
     pub gcode: Option<String>,
+    /// `"stored"` (default): simulate with the effects stored with the machine; `"none"`:
+    /// with its servo model alone.
+    #[serde(default)]
+    pub effects: Option<String>,
 }
 
 /// One simulated run.
@@ -228,6 +232,8 @@ pub struct SimulateAnswer {
     pub standard: &'static str,
     /// How the runs were made.
     pub note: &'static str,
+    /// The version of the machine's stored effects the simulation included (null: none).
+    pub effects_version: Option<i64>,
 }
 
 const SIM_NOTE: &str = "generated runs are three turns (lead-in, data capture, lead-out) from a \
@@ -309,7 +315,10 @@ async fn simulate(
     ApiJson(req): ApiJson<SimulateRequest>,
 ) -> ApiResult<ApiJson<SimulateAnswer>> {
     let def = require_machine_def(&state, &machine).await?;
-    let m = machine_for_simulation(&machine, &def)?;
+    let mut m = machine_for_simulation(&machine, &def)?;
+    m.effects =
+        super::effects::for_simulation(&state, &machine, &def, req.effects.as_deref()).await?;
+    let effects_version = m.effects.version();
     let period_s = req.period_s.unwrap_or(DEFAULT_PERIOD_S);
     check_period(period_s)?;
     let centre = req.centre.unwrap_or([0.0, 0.0]);
@@ -415,6 +424,7 @@ async fn simulate(
                 H: h,
                 standard: "ISO 230-4:2005",
                 note: SIM_NOTE,
+                effects_version,
             })
         })
         .await??;

@@ -12,6 +12,7 @@ pub mod compensation;
 pub mod contour;
 pub mod dashboard;
 pub mod decomposition;
+pub mod effects;
 pub mod error;
 pub mod extract;
 pub mod gap;
@@ -87,6 +88,7 @@ pub fn router(state: AppState) -> Router {
         .merge(contour::routes())
         .merge(volumetric::routes())
         .merge(gap::routes())
+        .merge(effects::routes())
         .merge(step_error::routes())
         .merge(decomposition::routes())
         .merge(compensation::routes())

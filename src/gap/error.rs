@@ -4,6 +4,10 @@
 #[non_exhaustive]
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum Error {
+    /// The effects stored with the machine cannot be added to the simulation, or a body of
+    /// effects to store is malformed (the sentence names the effect, the key and the fix).
+    #[error("{0}")]
+    Effects(String),
     /// The servo model of the machine is invalid (wraps the motion core's sentence).
     #[error("servo model of axis {axis}: {source}")]
     Servo {

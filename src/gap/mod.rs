@@ -1,5 +1,6 @@
 //! Sim-to-real gap diagnosis: where simulation and measurement part, which unmodelled effect
 //! causes it, and how far the gap shrinks once that effect is added (motion and part domains).
+pub mod adopted;
 pub mod align;
 pub mod answer;
 pub mod bounds;

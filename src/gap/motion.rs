@@ -12,7 +12,7 @@ use crate::gap::events::{Span, rank_spans};
 use crate::gap::fit::{SimCache, at_bound};
 use crate::gap::judge::{Outcome, judge, validation_left};
 use crate::gap::patterns::{Pattern, patterns};
-use crate::gap::plant::AxisPlant;
+use crate::gap::plant::{AxisPlant, stored_simulation};
 use crate::gap::steps::{Model, Problem, compose, cross_validate_observed};
 use crate::gap::unexplained::{Periodic, periodic_components};
 use crate::gap::usual::warnings;
@@ -56,6 +56,9 @@ pub struct MotionOptions {
     /// Weight per main-block sample: 1 where a log sample backs it, 0 where none does (a
     /// time-stamped log on the program's grid, [`crate::gap::align`]); `None`: every sample.
     pub observed: Option<Vec<f64>>,
+    /// Effects stored with the machine, added to the stored simulation the gap is measured
+    /// against ("as simulated"; default: none).
+    pub prior: crate::motion::Effects,
 }
 
 impl Default for MotionOptions {
@@ -76,6 +79,7 @@ impl Default for MotionOptions {
             // library pair unexplained, 0.5 kept one more out-of-library plant named
             max_validation_left: 0.4,
             observed: None,
+            prior: crate::motion::Effects::default(),
         }
     }
 }
@@ -342,11 +346,9 @@ pub fn diagnose_motion_structured(
                 .map(|p| p.with_structure(structure.get(k).copied().flatten()))
         })
         .collect::<Result<_, _>>()?;
-    let base: Vec<Vec<f64>> = plants
-        .iter()
-        .zip(&main.commanded)
-        .map(|(p, c)| p.linear(c))
-        .collect();
+    // the stored simulation: the linear cascade plus the effects stored with the machine
+    let simulate = |cmd: &[Vec<f64>]| stored_simulation(&plants, axes, &opts.prior, cmd);
+    let base = simulate(&main.commanded)?;
     let residual: Vec<Vec<f64>> = main
         .measured
         .iter()
@@ -482,16 +484,15 @@ pub fn diagnose_motion_structured(
         step_models.push(full.clone());
     }
     // the validation block, predicted by the steps fitted on the main block alone
-    let vsim = validation.map(|v| {
-        let vbase: Vec<Vec<f64>> = plants
-            .iter()
-            .zip(&v.commanded)
-            .map(|(p, c)| p.linear(c))
-            .collect();
-        let steps_v = step_models.iter();
-        let steps_v = steps_v.map(|m| compose(&m.members, &plants, &v.commanded, &vbase));
-        (steps_v.collect::<Vec<_>>(), vbase)
-    });
+    let vsim = match validation {
+        Some(v) => {
+            let vbase = simulate(&v.commanded)?;
+            let steps_v = step_models.iter();
+            let steps_v = steps_v.map(|m| compose(&m.members, &plants, &v.commanded, &vbase));
+            Some((steps_v.collect::<Vec<_>>(), vbase))
+        }
+        None => None,
+    };
     // a drift depends on the time since a warm-up the block does not show: not tested there
     let drift = steps.first().map(|s| s.fitted.effect()) == Some(Effect::ThermalDrift);
     let vshare = match (validation, &vsim) {

@@ -6,7 +6,7 @@
 //! would integrate the linear part inexactly.
 
 use crate::gap::Error;
-use crate::motion::StructuralMode;
+use crate::motion::{AxisModel, Effects, StructuralMode};
 use crate::motion::servo::{ContinuousServo, DiscreteServo, ServoAxis};
 
 /// Friction sub-steps per interpolation period (the friction force is held over a sub-step).
@@ -157,6 +157,31 @@ impl AxisPlant {
         }
         self.table(out)
     }
+}
+
+/// The stored simulation of a command (mm per axis): each plant's linear response plus the
+/// effects stored with the machine, `prior` ([`crate::motion::effects`]). `names` are the
+/// plants' axis letters.
+pub fn stored_simulation(
+    plants: &[AxisPlant],
+    names: &[String],
+    prior: &Effects,
+    cmd: &[Vec<f64>],
+) -> Result<Vec<Vec<f64>>, Error> {
+    let linear: Vec<Vec<f64>> = plants.iter().zip(cmd).map(|(p, c)| p.linear(c)).collect();
+    let models: Vec<AxisModel<'_>> = plants
+        .iter()
+        .zip(names)
+        .map(|(p, n)| AxisModel {
+            name: n,
+            servo: &p.servo,
+            structure: p.structure,
+        })
+        .collect();
+    let period = plants.first().map_or(0.0, |p| p.period_s);
+    prior
+        .apply(&models, period, cmd, linear)
+        .map_err(|e| Error::Effects(e.to_string()))
 }
 
 /// Backlash between motor and table as a play (hysteresis) operator of width `b` (mm):

@@ -78,6 +78,10 @@ pub struct GapRequest {
     /// Motion with `gcode`: machine home for G28/G30/G53, [x, y, z] mm.
     #[serde(default)]
     pub home: Option<[f64; 3]>,
+    /// Motion: `"stored"` (default) simulates with the effects stored with the machine,
+    /// `"none"` with its servo model alone (read by the API layer into the axes' effects).
+    #[serde(default)]
+    pub effects: Option<String>,
 }
 
 /// The command of a motion request that came as a program: per-axis columns (mm), the program
@@ -391,6 +395,7 @@ pub fn motion_inputs_timed(
         folds,
         threads,
         observed,
+        prior: axes.effects.clone(),
         ..MotionOptions::default()
     };
     Ok(((main, validation, period_s, opts), timed))

@@ -50,6 +50,8 @@ pub struct ServoAxes {
     pub servo: Vec<ServoAxis>,
     /// Structural mode per axis (from the definition's "physical" parameters), if any.
     pub structure: Vec<Option<StructuralMode>>,
+    /// Effects stored with the machine, added to the simulation (default: none).
+    pub effects: super::effects::Effects,
 }
 
 /// The X, Y(, Z) servo models of a checked definition, as far as they are given in that order

@@ -5,6 +5,10 @@
 #[non_exhaustive]
 #[derive(Debug, thiserror::Error, Clone, PartialEq)]
 pub enum Error {
+    /// The effects stored with the machine cannot be added to this simulation (the sentence
+    /// names the effect and the fix).
+    #[error("the effects stored with the machine: {0}")]
+    Effects(String),
     /// A servo parameter is out of its physical range (non-finite, non-positive, kff outside 0..1).
     #[error("servo parameter '{field}' = {value} is invalid: {reason}")]
     InvalidServo {

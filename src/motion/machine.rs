@@ -5,6 +5,7 @@ use serde_json::Value;
 
 use super::controller::ControllerLimits;
 use super::def::{KinematicsKind, MachineDef};
+use super::effects::{AxisModel, Effects};
 use super::error::Error;
 use super::kinematics::Kinematics;
 use super::physical::StructuralMode;
@@ -61,9 +62,23 @@ pub struct Machine {
     pub rapid_mm_min: f64,
     /// The controller's limits on dense blocks (default: none, the service's own planning).
     pub controller: ControllerLimits,
+    /// Effects stored with the machine, added to every simulation (default: none).
+    pub effects: Effects,
 }
 
 impl Machine {
+    /// The axes as the stored effects see them ([`AxisModel`]).
+    pub fn axis_models(&self) -> Vec<AxisModel<'_>> {
+        self.axes
+            .iter()
+            .map(|a| AxisModel {
+                name: a.name,
+                servo: &a.servo,
+                structure: a.structure,
+            })
+            .collect()
+    }
+
     /// Parses, validates ([`MachineDef::from_value`]) and builds a machine from its JSON.
     pub fn from_json(def: &Value) -> Result<Machine, Error> {
         Machine::from_def(&MachineDef::from_value(def)?)
@@ -96,6 +111,7 @@ impl Machine {
                 Some(c) => c.limits()?,
                 None => ControllerLimits::default(),
             },
+            effects: Effects::default(),
         })
     }
 }

@@ -6,6 +6,7 @@ pub mod bounds;
 pub mod contour;
 pub mod controller;
 pub mod def;
+pub mod effects;
 pub mod error;
 pub mod gcode;
 pub mod interpolate;
@@ -23,6 +24,7 @@ pub mod settle;
 pub use axes::{ServoAxes, check_period, machine_for_simulation, servo_axes, stored_definition};
 pub use contour::{ContourReport, contour_error};
 pub use controller::{ControllerDef, ControllerKind, ControllerLimits};
+pub use effects::{AddedEffects, AxisModel, Effects};
 pub use def::{AxesDef, AxisDef, KinematicsKind, MachineDef};
 pub use error::Error;
 pub use gcode::{Program, ReadOptions, Warning, parse, parse_modes, parse_with};
@@ -33,7 +35,7 @@ pub use path_control::{BlockEnd, PathControl};
 pub use physical::{PhysicalAxis, StructuralMode};
 pub use predict::{
     ContourPrediction, predict_contour_error, predict_program, predict_program_with,
-    simulate_machine,
+    simulate_linear, simulate_machine,
 };
 pub use servo::{DiscreteServo, ServoAxis, simulate_axis};
 pub use settle::{

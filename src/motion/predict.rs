@@ -24,8 +24,20 @@ pub struct ContourPrediction {
 
 /// Simulates every axis of `machine` for an interpolated command: the servo cascade of openapi.yaml
 /// schema `Servo` (exact discretization, [`simulate_axis`]) followed, where the machine has one, by
-/// the structural mode of Zhang & Chen 2025 eq. 10 ([`super::physical::StructuralMode::filter`]).
+/// the structural mode of Zhang & Chen 2025 eq. 10 ([`super::physical::StructuralMode::filter`]),
+/// then the effects stored with the machine ([`super::effects`]), if any.
 pub fn simulate_machine(machine: &Machine, commanded: &Trajectory) -> Result<Vec<Vec<f64>>, Error> {
+    let linear = simulate_linear(machine, commanded)?;
+    machine.effects.apply(
+        &machine.axis_models(),
+        commanded.period_s,
+        &commanded.axes,
+        linear,
+    )
+}
+
+/// [`simulate_machine`] without the stored effects: the linear cascade and structural mode only.
+pub fn simulate_linear(machine: &Machine, commanded: &Trajectory) -> Result<Vec<Vec<f64>>, Error> {
     machine
         .axes
         .iter()

@@ -17,7 +17,7 @@ use super::gcode::Program;
 use super::interpolate::{Trajectory, interpolate_with};
 use super::machine::Machine;
 use super::path_control::PathControl;
-use super::predict::{ContourPrediction, simulate_machine};
+use super::predict::{ContourPrediction, simulate_linear};
 
 /// How close every linear axis must come to the program's end point for the servo to count as
 /// settled, mm (0.1 µm: below what a machine tool's scales resolve, 0.05–1 µm).
@@ -129,7 +129,8 @@ fn held(commanded: &Trajectory, extra: usize) -> Trajectory {
 /// start gives the same samples up to the command's end as without it; the run-out is
 /// simulated over `FIRST_RUN_OUT_S`, doubled (up to [`MAX_SETTLE_S`]) until the axes are
 /// within tolerance at its last sample and have stayed there at least as long as they took to
-/// get there (so a decaying oscillation that leaves the band again is not cut short).
+/// get there (so a decaying oscillation that leaves the band again is not cut short). The
+/// machine's stored effects are added to that run after settling is judged on the linear servo.
 ///
 /// Reference: openapi.yaml `Servo`; Zhang & Chen 2025 §3 (the servo) and §4 (contour error).
 ///
@@ -155,7 +156,7 @@ pub fn predict_program_settled(
     let mut extra = ((FIRST_RUN_OUT_S / period_s).ceil() as usize).min(max_extra);
     let (mut run, mut actual, keep, settled) = loop {
         let run = held(&commanded, extra);
-        let actual = simulate_machine(machine, &run)?;
+        let actual = simulate_linear(machine, &run)?;
         let from = settled_from(&actual, &end, n - 1);
         let stayed = |k: usize| n + extra - k >= k + 1 - n;
         match from {
@@ -169,6 +170,11 @@ pub fn predict_program_settled(
     for col in run.axes.iter_mut().chain(actual.iter_mut()) {
         col.truncate(keep);
     }
+    // settled is judged on the linear servo; the stored effects (which may leave the tool off
+    // the end point for good: backlash, scale, drift) are added to the run it asks for
+    let actual = machine
+        .effects
+        .apply(&machine.axis_models(), period_s, &run.axes, actual)?;
     let settle = Settle {
         command_end_s: commanded.t[n - 1],
         settle_s: run.t[keep - 1] - commanded.t[n - 1],

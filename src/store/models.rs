@@ -402,6 +402,19 @@ impl ModelStore {
         surface: Option<&str>,
         kind: &str,
     ) -> Result<Option<Vec<u8>>> {
+        Ok(self
+            .load_versioned(machine, surface, kind)
+            .await?
+            .map(|(_, payload)| payload))
+    }
+
+    /// [`ModelStore::load`] with the served version's number, read in the same query.
+    pub async fn load_versioned(
+        &self,
+        machine: &str,
+        surface: Option<&str>,
+        kind: &str,
+    ) -> Result<Option<(i64, Vec<u8>)>> {
         let dir = self.dir_of(machine, surface, kind)?;
         let row = sqlx::query(
             "SELECT m.version, v.data FROM models m LEFT JOIN model_versions v \
@@ -422,7 +435,7 @@ impl ModelStore {
         let file = dir.join(format!("{kind}.v{version}.tcm"));
         if let Some(bytes) = data {
             let name = format!("{machine}/{}/{kind} v{version}", surface.unwrap_or("-"));
-            return decode_model(&bytes, Path::new(&name)).map(Some);
+            return decode_model(&bytes, Path::new(&name)).map(|p| Some((version, p)));
         }
         // Version 1 of a model saved before versions existed is the unversioned file.
         let legacy = dir.join(format!("{kind}.tcm"));
@@ -443,7 +456,7 @@ impl ModelStore {
         })
         .await??;
         match bytes {
-            Some((b, path)) => decode_model(&b, &path).map(Some),
+            Some((b, path)) => decode_model(&b, &path).map(|p| Some((version, p))),
             None => bail!(
                 "model {kind} version {version} of machine {machine} is recorded in the \
                  database but its file {} is missing (models of an instance on SQLite live \

@@ -126,6 +126,8 @@ struct Answer<'a> {
     orientation_max_deg: Option<f64>,
     #[serde(skip_serializing_if = "Option::is_none")]
     settle: Option<SettleBody>,
+    /// The version of the machine's stored effects the simulation included (null: none).
+    effects_version: Option<i64>,
 }
 
 /// Encodes a prediction of machine `m` as the route's JSON answer (no reader warnings, no
@@ -178,6 +180,7 @@ pub fn encode_answer_with_warnings(
         orientation_error_deg: p.report.orientation_error_deg.as_deref(),
         orientation_max_deg: p.report.orientation_max_deg,
         settle: settle.map(SettleBody::of),
+        effects_version: m.effects.version(),
     };
     let mut out = Vec::with_capacity(ce.len() * 120);
     serde_json::to_writer(&mut out, &answer)?;

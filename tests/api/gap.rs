@@ -112,6 +112,45 @@ async fn motion_backlash_found_located_and_validated(app: TestApp) {
 }
 on_both_backends!(motion_backlash_found_located_and_validated);
 
+/// Issue 40: a diagnosis' `accept` body, PUT as the machine's effects, is what the next
+/// diagnosis of the same run simulates with: at most 0.3x of the first gap is left (the
+/// gate), and `"effects": "none"` gives the first answer back.
+async fn motion_accepted_effects_leave_a_small_rest(app: TestApp) {
+    let r = app.put_json("/v1/machines/m1", &machine()).await;
+    assert!(r.status().is_success());
+    let (c, m) = block(&Truth::Backlash(vec![0.012, 0.008], true), false, 1);
+    let body = json!({"domain": "motion", "period_s": 0.001, "commanded": c, "measured": m});
+    let url = "/v1/machines/m1/gap-diagnosis";
+    let first: Value = app.post_json(url, &body).await.json().await.unwrap();
+    assert_eq!(first["verdict"], "backlash", "{}", first["effects"]);
+    assert_eq!(first["effects_version"], Value::Null);
+    let accept = &first["accept"];
+    assert_eq!(accept["effects"][0]["effect"], "backlash", "{accept}");
+    let r = app.put_json("/v1/machines/m1/effects", accept).await;
+    assert_eq!(r.status(), 201);
+    let again: Value = app.post_json(url, &body).await.json().await.unwrap();
+    assert_eq!(again["effects_version"], 1);
+    let rms = |a: &Value| a["gap_before"]["rms"].as_f64().unwrap();
+    let shrink = rms(&again) / rms(&first);
+    eprintln!(
+        "accepted backlash: gap {:.2} -> {:.2} um ({shrink:.3}x), verdict {} -> {}",
+        rms(&first) * 1e3,
+        rms(&again) * 1e3,
+        first["verdict"],
+        again["verdict"]
+    );
+    assert!(shrink <= 0.3, "the stored effects left {shrink:.3}x of the gap");
+    assert_eq!(again["verdict"], "none", "{}", again["effects"]);
+    // the next accept keeps what is stored
+    assert_eq!(again["accept"]["effects"][0], accept["effects"][0]);
+    let mut plain = body.clone();
+    plain["effects"] = json!("none");
+    let none: Value = app.post_json(url, &plain).await.json().await.unwrap();
+    assert_eq!(none["gap_before"], first["gap_before"]);
+    assert_eq!(none["effects_version"], Value::Null);
+}
+on_both_backends!(motion_accepted_effects_leave_a_small_rest);
+
 /// Issue 23, item 1: a gain three times the stored one is far outside a machine's usual
 /// range and beyond the first search (2x). The search widens once, the gain is the verdict
 /// with its size, and the answer says why the size is unusual and where to look.

@@ -19,6 +19,7 @@ mod crash;
 mod dashboard;
 mod decomposition;
 mod door;
+mod effects;
 mod faults;
 mod fleet;
 mod fleet_files;
