@@ -20,15 +20,15 @@ use super::extract::{ApiJson, decode_json, is_json, read_body};
 use super::lookup::{require_machine, require_measurement, require_surface};
 use super::version::stamp;
 use crate::api::id::{Id, PathIds};
+use crate::gap::adopted::EffectSet;
 use crate::gap::{
     self, GapRequest, PartBlock, PartGrid, ProgramCommand, diagnose_motion_program,
     diagnose_motion_request, motion_inputs, part_answer,
 };
 use crate::jobs::{Progress, Runner};
-use crate::gap::adopted::EffectSet;
 use crate::motion::{
-    Effects, Machine, MachineDef, ServoAxes, check_period, interpolate_with, machine_for_simulation, parse_modes,
-    servo_axes, stored_definition,
+    Effects, Machine, MachineDef, ServoAxes, check_period, interpolate_with,
+    machine_for_simulation, parse_modes, servo_axes, stored_definition,
 };
 
 /// Routes of this resource.

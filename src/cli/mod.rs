@@ -9,6 +9,7 @@ pub mod compensation;
 pub mod contour;
 pub mod decompose;
 pub mod demo;
+pub mod effects;
 pub mod gap;
 pub mod iso;
 pub mod jobs;
@@ -95,6 +96,9 @@ pub enum Command {
     /// ISO 230-4:2005 circular test (G, F, H), or its simulation on a stored machine.
     #[command(name = "iso230-4")]
     Iso2304(iso::Args4),
+    /// The effects stored with a machine on a running service: accept what a gap diagnosis
+    /// found, show, versions, rollback.
+    Effects(effects::Args),
 }
 
 /// Runs a parsed command line.
@@ -113,6 +117,7 @@ pub fn run(cli: Cli) -> anyhow::Result<()> {
         Command::Program(a) => program::run(a),
         Command::Iso2302(a) => iso::run_2(a),
         Command::Iso2304(a) => iso::run_4(a),
+        Command::Effects(a) => effects::run(a),
     }
 }
 

@@ -132,7 +132,11 @@ fn read(e: &EffectEntry, axes: &[AxisInfo]) -> Result<Adopted, Error> {
         for (k, &v) in &e.params {
             let (axis, suffix) = split(name, k, axes)?;
             if !keys.contains(&suffix) {
-                return Err(unknown(name, k, &format!("<axis>_{}", keys.join(", <axis>_"))));
+                return Err(unknown(
+                    name,
+                    k,
+                    &format!("<axis>_{}", keys.join(", <axis>_")),
+                ));
             }
             out.entry(axis).or_default().insert(suffix.to_string(), v);
         }
@@ -151,13 +155,23 @@ fn read(e: &EffectEntry, axes: &[AxisInfo]) -> Result<Adopted, Error> {
                 };
                 let l = axis.to_lowercase();
                 let f = p.get(want).copied().ok_or_else(|| {
-                    bad(name, &format!("{l}_{want}"), &format!(
-                        "axis {axis} {} a velocity loop in the machine's servo model: give \
+                    bad(
+                        name,
+                        &format!("{l}_{want}"),
+                        &format!(
+                            "axis {axis} {} a velocity loop in the machine's servo model: give \
                          its friction as {l}_{want}",
-                        if info.velocity_loop { "has" } else { "has no" }
-                    ))
+                            if info.velocity_loop { "has" } else { "has no" }
+                        ),
+                    )
                 })?;
-                check_range(name, &format!("{l}_{want}"), f, (0.0..=1e6).contains(&f), "0..1e6")?;
+                check_range(
+                    name,
+                    &format!("{l}_{want}"),
+                    f,
+                    (0.0..=1e6).contains(&f),
+                    "0..1e6",
+                )?;
                 out.insert(axis, f);
             }
             Adopted::Friction(out)
@@ -168,9 +182,19 @@ fn read(e: &EffectEntry, axes: &[AxisInfo]) -> Result<Adopted, Error> {
             for (axis, p) in m {
                 let l = axis.to_lowercase();
                 let b = p.get("mm").copied().ok_or_else(|| {
-                    bad(name, &format!("{l}_mm"), "missing: give the gap width in mm")
+                    bad(
+                        name,
+                        &format!("{l}_mm"),
+                        "missing: give the gap width in mm",
+                    )
                 })?;
-                check_range(name, &format!("{l}_mm"), b, (0.0..=10.0).contains(&b), "0..10 mm")?;
+                check_range(
+                    name,
+                    &format!("{l}_mm"),
+                    b,
+                    (0.0..=10.0).contains(&b),
+                    "0..10 mm",
+                )?;
                 // the table's place in the gap at the program's start is unknown: in contact
                 // against the first move (−1) shows the whole lost motion there
                 let st = p.get("start_in_gap").copied().unwrap_or(-1.0);
@@ -189,7 +213,13 @@ fn read(e: &EffectEntry, axes: &[AxisInfo]) -> Result<Adopted, Error> {
                 let g = match (p.get("kv_per_s"), p.get("kv_ratio")) {
                     (Some(&kv), _) => {
                         let key = format!("{l}_kv_per_s");
-                        check_range(name, &key, kv, (0.01..=1e4).contains(&kv), "0.01..10,000 1/s")?;
+                        check_range(
+                            name,
+                            &key,
+                            kv,
+                            (0.01..=1e4).contains(&kv),
+                            "0.01..10,000 1/s",
+                        )?;
                         Ok(kv)
                     }
                     (None, Some(&r)) => {
@@ -222,7 +252,11 @@ fn read(e: &EffectEntry, axes: &[AxisInfo]) -> Result<Adopted, Error> {
                 found = Some(Adopted::Squareness(t, s, v));
             }
             found.ok_or_else(|| {
-                bad(name, "urad", "name the axes: give <target>_per_<source>_rad, e.g. y_per_x_rad")
+                bad(
+                    name,
+                    "urad",
+                    "name the axes: give <target>_per_<source>_rad, e.g. y_per_x_rad",
+                )
             })?
         }
         Effect::ScaleError => {
@@ -249,7 +283,13 @@ fn read(e: &EffectEntry, axes: &[AxisInfo]) -> Result<Adopted, Error> {
                 let (pitch, amp) = (need("pitch_mm")?, need("amplitude_mm")?);
                 let phase = p.get("phase_rad").copied().unwrap_or(0.0);
                 let key = format!("{l}_pitch_mm");
-                check_range(name, &key, pitch, (1e-3..=1e4).contains(&pitch), "0.001..10,000 mm")?;
+                check_range(
+                    name,
+                    &key,
+                    pitch,
+                    (1e-3..=1e4).contains(&pitch),
+                    "0.001..10,000 mm",
+                )?;
                 let key = format!("{l}_amplitude_mm");
                 check_range(name, &key, amp, (0.0..=10.0).contains(&amp), "0..10 mm")?;
                 // the diagnosis answers phase = atan2(cos, sin) and amplitude = |(sin, cos)|
@@ -260,7 +300,13 @@ fn read(e: &EffectEntry, axes: &[AxisInfo]) -> Result<Adopted, Error> {
         Effect::ThermalDrift => {
             let tau = e.params.get("tau_s").copied().unwrap_or(f64::INFINITY);
             let ok = tau == f64::INFINITY || (1e-3..=1e9).contains(&tau);
-            check_range(name, "tau_s", tau, ok, "0.001..1e9 s (leave it out for a linear drift)")?;
+            check_range(
+                name,
+                "tau_s",
+                tau,
+                ok,
+                "0.001..1e9 s (leave it out for a linear drift)",
+            )?;
             let mut rates = BTreeMap::new();
             for (k, &v) in &e.params {
                 if k == "tau_s" {

@@ -6,8 +6,8 @@
 //! would integrate the linear part inexactly.
 
 use crate::gap::Error;
-use crate::motion::{AxisModel, Effects, StructuralMode};
 use crate::motion::servo::{ContinuousServo, DiscreteServo, ServoAxis};
+use crate::motion::{AxisModel, Effects, StructuralMode};
 
 /// Friction sub-steps per interpolation period (the friction force is held over a sub-step).
 pub const FRICTION_SUBSTEPS: usize = 4;

@@ -430,3 +430,66 @@ async fn every_subcommand_help_has_an_example_and_the_exit_codes_are_listed() {
         assert!(text(&out).0.contains("Example:"), "jobs {sub}");
     }
 }
+
+/// `truecut effects accept` stores the `accept` of a saved motion diagnosis as the machine's
+/// effects (issue 40 item 3), `versions` lists it, `rollback` serves an earlier one; an
+/// answer without `accept` is refused with exit 1 and a sentence.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn effects_accept_versions_and_rollback() {
+    let app = spawn_app().await;
+    let r = app
+        .put_json("/v1/machines/m1", &crate::helpers::machine_xyz())
+        .await;
+    assert!(r.status().is_success());
+    let dir = tempfile::tempdir().unwrap();
+    let answer = dir.path().join("diagnosis.json");
+    let first = json!({"domain": "motion", "verdict": "backlash",
+        "accept": {"effects": [{"effect": "backlash", "params": {"x_mm": 0.02}}],
+                   "source": "gap diagnosis of today"}});
+    std::fs::write(&answer, first.to_string()).unwrap();
+    let answer = answer.to_str().unwrap().to_string();
+    let run = |list: &[&str]| {
+        let mut a = args(list);
+        a.insert(1, "--server".into());
+        a.insert(2, app.addr.clone());
+        truecut(a)
+    };
+    let out = run(&["effects", "accept", "m1", "--answer", &answer]).await;
+    let (stdout, stderr) = text(&out);
+    assert!(out.status.success(), "{stdout} {stderr}");
+    let stored: Value = serde_json::from_str(&stdout).unwrap();
+    assert_eq!(stored["version"], 1);
+    assert!(
+        stored["source"]
+            .as_str()
+            .unwrap()
+            .contains("diagnosis.json"),
+        "{stored}"
+    );
+    assert!(stderr.contains("1 effects stored as version 1"), "{stderr}");
+    let out = run(&["effects", "accept", "m1", "--answer", &answer]).await;
+    assert!(out.status.success());
+    let out = run(&["effects", "versions", "m1"]).await;
+    let v: Value = serde_json::from_str(&text(&out).0).unwrap();
+    assert_eq!(v["current"], 2);
+    let out = run(&["effects", "rollback", "m1", "1"]).await;
+    let v: Value = serde_json::from_str(&text(&out).0).unwrap();
+    assert_eq!(v["current"], 1);
+    let out = run(&["effects", "show", "m1"]).await;
+    let v: Value = serde_json::from_str(&text(&out).0).unwrap();
+    assert_eq!(v["effects"][0]["params"]["x_mm"], 0.02);
+    // a part answer has nothing to accept
+    let part = dir.path().join("part.json");
+    std::fs::write(&part, json!({"domain": "part"}).to_string()).unwrap();
+    let out = run(&[
+        "effects",
+        "accept",
+        "m1",
+        "--answer",
+        part.to_str().unwrap(),
+    ])
+    .await;
+    let (_, stderr) = text(&out);
+    assert_eq!(out.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("only a motion gap diagnosis"), "{stderr}");
+}

@@ -35,21 +35,35 @@ async fn stored_versioned_and_simulated(app: TestApp) {
     assert_eq!(plain["effects_version"], Value::Null);
 
     // adopt 50 µm of backlash on X and Y: the first version
-    let r = app.put_json("/v1/machines/m/effects", &backlash(0.05)).await;
+    let r = app
+        .put_json("/v1/machines/m/effects", &backlash(0.05))
+        .await;
     assert_eq!(r.status(), 201);
     let a: Value = r.json().await.unwrap();
     assert_eq!(a["version"], 1);
     let with = contour(&app, json!({"gcode": CIRCLES})).await;
     assert_eq!(with["effects_version"], 1);
-    assert_eq!(with["commanded"], plain["commanded"], "effects never change the command");
+    assert_eq!(
+        with["commanded"], plain["commanded"],
+        "effects never change the command"
+    );
     // the play keeps the table b/2 = 25 µm behind the motor, on one side then the other
-    let rows = |a: &Value| -> Vec<Vec<f64>> { serde_json::from_value(a["actual"].clone()).unwrap() };
+    let rows =
+        |a: &Value| -> Vec<Vec<f64>> { serde_json::from_value(a["actual"].clone()).unwrap() };
     let shift = rows(&plain)
         .iter()
         .zip(rows(&with))
-        .flat_map(|(p, w)| p.iter().zip(w).map(|(p, w)| (p - w).abs()).collect::<Vec<_>>())
+        .flat_map(|(p, w)| {
+            p.iter()
+                .zip(w)
+                .map(|(p, w)| (p - w).abs())
+                .collect::<Vec<_>>()
+        })
         .fold(0.0, f64::max);
-    assert!((shift - 0.025).abs() < 1e-3, "largest shift {shift} mm, want 0.025");
+    assert!(
+        (shift - 0.025).abs() < 1e-3,
+        "largest shift {shift} mm, want 0.025"
+    );
     assert_ne!(with["rms"], plain["rms"]);
     let none = contour(&app, json!({"gcode": CIRCLES, "effects": "none"})).await;
     assert_eq!(none["effects_version"], Value::Null);
@@ -63,18 +77,24 @@ async fn stored_versioned_and_simulated(app: TestApp) {
     assert_problem(r, 400, &["effects", "none"]).await;
 
     // the ballbar simulation sees the reversal steps too
-    let sim = |effects: &str| {
-        json!({"radius": 10.0, "feed": 3000.0, "directions": ["ccw"], "effects": effects})
-    };
+    let sim = |effects: &str| json!({"radius": 10.0, "feed": 3000.0, "directions": ["ccw"], "effects": effects});
     let url = "/v1/machines/m/iso230-4/simulate";
     let r = app.post_json(url, &sim("stored")).await;
     assert_eq!(r.status(), 200);
     let s1: Value = r.json().await.unwrap();
     let r = app.post_json(url, &sim("none")).await;
     let s0: Value = r.json().await.unwrap();
-    assert_eq!((&s1["effects_version"], &s0["effects_version"]), (&json!(1), &Value::Null));
+    assert_eq!(
+        (&s1["effects_version"], &s0["effects_version"]),
+        (&json!(1), &Value::Null)
+    );
     let g = |s: &Value| s["runs"]["ccw"]["G"].as_f64().unwrap();
-    assert!(g(&s1) > g(&s0) + 0.01, "circular deviation G {} -> {} mm", g(&s0), g(&s1));
+    assert!(
+        g(&s1) > g(&s0) + 0.01,
+        "circular deviation G {} -> {} mm",
+        g(&s0),
+        g(&s1)
+    );
 
     // a second version, the list, and a rollback to the first
     let scale = json!({"effects": [{"effect": "scale_error", "params": {"x_ppm": 500.0}}]});
@@ -92,7 +112,12 @@ async fn stored_versioned_and_simulated(app: TestApp) {
         .post_json("/v1/machines/m/effects/rollback", &json!({"version": 1}))
         .await;
     assert_eq!(r.status(), 200);
-    let g: Value = app.get("/v1/machines/m/effects").await.json().await.unwrap();
+    let g: Value = app
+        .get("/v1/machines/m/effects")
+        .await
+        .json()
+        .await
+        .unwrap();
     assert_eq!(g["version"], 1);
     assert_eq!(g["effects"][0]["effect"], "backlash");
     assert_eq!(g["source"], "test");
@@ -101,10 +126,22 @@ async fn stored_versioned_and_simulated(app: TestApp) {
 
     // refusals name the key and the fix
     let bad = [
-        (json!({"effects": [{"effect": "backlash", "params": {"b_mm": 0.01}}]}), "b_mm"),
-        (json!({"effects": [{"effect": "backlash", "params": {"x_gap": 0.01}}]}), "x_gap"),
-        (json!({"effects": [{"effect": "wear", "params": {"x_mm": 0.01}}]}), "wear"),
-        (json!({"effects": [{"effect": "backlash", "params": {"x_mm": 0.01}, "k": 1}]}), "k"),
+        (
+            json!({"effects": [{"effect": "backlash", "params": {"b_mm": 0.01}}]}),
+            "b_mm",
+        ),
+        (
+            json!({"effects": [{"effect": "backlash", "params": {"x_gap": 0.01}}]}),
+            "x_gap",
+        ),
+        (
+            json!({"effects": [{"effect": "wear", "params": {"x_mm": 0.01}}]}),
+            "wear",
+        ),
+        (
+            json!({"effects": [{"effect": "backlash", "params": {"x_mm": 0.01}, "k": 1}]}),
+            "k",
+        ),
     ];
     for (body, word) in bad {
         let r = app.put_json("/v1/machines/m/effects", &body).await;

@@ -139,7 +139,10 @@ async fn motion_accepted_effects_leave_a_small_rest(app: TestApp) {
         first["verdict"],
         again["verdict"]
     );
-    assert!(shrink <= 0.3, "the stored effects left {shrink:.3}x of the gap");
+    assert!(
+        shrink <= 0.3,
+        "the stored effects left {shrink:.3}x of the gap"
+    );
     assert_eq!(again["verdict"], "none", "{}", again["effects"]);
     // the next accept keeps what is stored
     assert_eq!(again["accept"]["effects"][0], accept["effects"][0]);

@@ -69,7 +69,7 @@ pub const SETTLE_TIME_CONSTANTS: f64 = 5.0;
 pub const PRUNE_FEED: f64 = 0.01;
 
 /// An excursion beyond the band smaller than this (1 nm) is the simulation's arithmetic,
-/// not an overshoot ([`within_band`]), mm.
+/// not an overshoot (`within_band`), mm.
 pub const BAND_SLACK_MM: f64 = 1e-6;
 
 /// Growth of the band hinge's weight per round of the penalty method (the factor Nocedal
@@ -79,11 +79,11 @@ pub const PENALTY_GROWTH: f64 = 10.0;
 /// Rounds of the penalty method after the first solve (they share the optimiser's
 /// iteration budget with it). After three the hinge's residual
 /// weighs 1,000× [`PENALTY`] (its cost 10⁶×): what still leaves the band then is an
-/// optimiser stall rather than too light a weight, and [`within_band`] scales the answer
+/// optimiser stall rather than too light a weight, and `within_band` scales the answer
 /// back.
 pub const PENALTY_ROUNDS: usize = 3;
 
-/// Bisection steps of [`within_band`]'s scale: 7 halvings leave it within 1 % of the
+/// Bisection steps of `within_band`'s scale: 7 halvings leave it within 1 % of the
 /// largest that stays within the band, a digit no figure shows.
 pub const BAND_BISECTIONS: usize = 7;
 

@@ -108,8 +108,14 @@ fn a_diagnosis_answer_stored_adds_what_the_diagnosis_predicted() {
             .zip(linear.iter().flatten())
             .map(|(a, b)| (a - b).abs())
             .fold(0.0, f64::max);
-        assert!(size > 1e-5, "{f:?} should change the simulation, changed {size}");
-        assert!(worst < 1e-9, "{f:?}: stored differs from the diagnosis by {worst} mm");
+        assert!(
+            size > 1e-5,
+            "{f:?} should change the simulation, changed {size}"
+        );
+        assert!(
+            worst < 1e-9,
+            "{f:?}: stored differs from the diagnosis by {worst} mm"
+        );
         assert_eq!(stored.version(), 3);
     }
 }
