@@ -47,7 +47,17 @@ VIEWS = [
     ("iso230-2", "#/iso230-2", 3, 1),
     ("iso230-4", "#/iso230-4", 2, 0),
     ("api", "#/api", 0, 1),
+    # last, since they store effects with the demo machine that later simulations would add:
+    # the motion diagnosis' "accept these effects" (ACTIONS), then the machine page listing them
+    ("gap-accept", "#/m/demo/gap", 4, 2),
+    ("machine-effects", "#/m/demo", 0, 3),
 ]
+
+# Views that act once loaded: this script runs in the page (a click), after which the view must
+# be ready again; what it then shows is checked by WANT_TEXT.
+ACTIONS = {
+    "gap-accept": "document.querySelector('button.accept').click()",
+}
 
 # What each plot has drawn: data marks outside the axes and the colour bar, their joint
 # bounding box, and whether any attribute says NaN.
@@ -125,6 +135,9 @@ WANT_TEXT = {
     "volumetric-none": "none yet",
     "machine": "Volumetric map: none yet",
     "machines": "none yet",
+    "gap-motion": "servo model alone",
+    "gap-accept": "Stored as version 1",
+    "machine-effects": "Stored effects, version 1",
 }
 
 
@@ -305,6 +318,16 @@ def main():
                     break
                 time.sleep(0.2)
             browser.pump(0.3)
+            if name in ACTIONS and state == "ready":
+                browser.evaluate(ACTIONS[name])
+                while time.time() - started < 90:
+                    state = browser.evaluate("document.body.dataset.state")
+                    if state in ("ready", "error"):
+                        break
+                    time.sleep(0.2)
+                browser.pump(0.3)
+                after = browser.evaluate("[...document.querySelectorAll('.figures')].pop().textContent")
+                print(f"       after {ACTIONS[name]!r}: {after}")
             problem = browser.evaluate("(document.querySelector('.problem') || {}).textContent || ''")
             plots = browser.evaluate(PLOT_CHECK)
             tables = browser.evaluate("document.querySelectorAll('main table').length")

@@ -17,7 +17,8 @@
    * diagnosis has a known answer (backlash).
    */
   async function demoRun(m, gcode) {
-    const sim = await api("POST", `/v1/machines/${enc(m)}/contour-error`, { gcode, period_s: 0.001 });
+    // the truth is the servo model alone plus the backlash, whatever the machine has stored
+    const sim = await api("POST", `/v1/machines/${enc(m)}/contour-error`, { gcode, period_s: 0.001, effects: "none" });
     let seed = 12345;
     const noise = () => { seed = (seed * 1103515245 + 12345) % 2147483648; return (seed / 2147483648 - 0.5) * 0.001; };
     // Play operator: the table follows the simulated drive on X only once the drive has
@@ -66,6 +67,30 @@
     }
     demo.addEventListener("click", (e) => { e.preventDefault(); fillDemo(); });
     await fillDemo();
+    /** "Accept these effects": stores the diagnosis' `accept` with the machine, then diagnoses
+     *  the same run again with them and shows the gap before and after. */
+    function acceptBox(out, body, d) {
+      const names = d.steps.map((x) => x.effect).join(" + ");
+      const b = h("button", { class: "accept" }, `Accept these effects (${names}) for machine ${m}`);
+      const said = h("div");
+      out.append(h("p", {}, b), said);
+      b.addEventListener("click", async (e) => {
+        e.preventDefault();
+        document.body.dataset.state = "loading";
+        try {
+          const stored = await api("PUT", `/v1/machines/${enc(m)}/effects`, d.accept);
+          const again = await api("POST", `/v1/machines/${enc(m)}/gap-diagnosis`, body);
+          said.append(h("p", { class: "note" }, `Stored as version ${stored.version}: contour error, compensated programs (contour) and the next diagnosis of machine ${m} include them. The same run diagnosed again:`),
+            figures([[um(d.gap_before.rms), "gap RMS before (servo model)"], [um(again.gap_before.rms), `gap RMS with effects v${stored.version}`],
+              [`${(again.gap_before.rms / d.gap_before.rms).toFixed(3)}×`, "what is left"], [again.verdict, "verdict now"]]));
+          b.disabled = true;
+          document.body.dataset.state = "ready";
+        } catch (err) {
+          said.append(App.problemBox(err));
+          document.body.dataset.state = "error";
+        }
+      });
+    }
     await runner(button, out, async (out) => {
       const period_s = Number(period.value);
       const measured = csvRows(meas.value).map((r) => r.slice(0, 3));
@@ -92,8 +117,13 @@
       out.append(plots);
       const t = measured.map((_, i) => i * period_s);
       const spans = d.where.slice(0, 6).map((w, i) => ({ x0: w.start * period_s, x1: w.end * period_s, label: `${i + 1}` }));
+      out.append(h("p", { class: "note" }, d.effects_version === null || d.effects_version === undefined
+        ? "Simulated with the machine's servo model alone (no effects stored)."
+        : `Simulated with the servo model and the effects stored with the machine (version ${d.effects_version}).`));
+      if (d.accept && (d.steps || []).length) acceptBox(out, body, d);
       if (byProgram) {
-        const sim = demoCache && cmd.value === MAIN ? demoCache.main : await api("POST", `/v1/machines/${enc(m)}/contour-error`, { gcode: cmd.value, period_s });
+        const cached = demoCache && cmd.value === MAIN && d.effects_version === null;
+        const sim = cached ? demoCache.main : await api("POST", `/v1/machines/${enc(m)}/contour-error`, { gcode: cmd.value, period_s });
         const axes = d.axes || ["X", "Y", "Z"];
         Plot.lines(plots, { title: "Gap over time per axis; shaded: spans where it arises", xlabel: "time (s)", ylabel: "gap measured − simulated (µm)", spans, hline: 0,
           series: axes.slice(0, measured[0].length).map((a, k) => ({ x: t, y: measured.map((p, i) => (p[k] - sim.actual[Math.min(i, sim.actual.length - 1)][k]) * 1000), label: a, colour: ["#1f5f99", "#c0392b", "#2e8b57"][k], width: 1 })) });

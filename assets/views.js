@@ -12,9 +12,40 @@
   /** Whether machine `m` has a volumetric map, from the machine list (which says what each
    *  machine has), so that no view asks for a map that does not exist. */
   async function hasVolumetricMap(m) {
+    return (await machineRecord(m)).volumetric_map;
+  }
+  /** What machine `m` has ({volumetric_map, effects}), from the machine list. */
+  async function machineRecord(m) {
     const { machines } = await api("GET", "/v1/machines");
-    const rec = machines.find((x) => x.id === m);
-    return !!(rec && rec.volumetric_map);
+    const rec = machines.find((x) => x.id === m) || {};
+    return { volumetric_map: !!rec.volumetric_map, effects: !!rec.effects };
+  }
+  const paramText = (p) => Object.entries(p || {}).map(([k, x]) => `${k} = ${Number(x).toPrecision(4)}`).join(", ");
+
+  /** The effects stored with machine `m` (what every simulation of it adds), their versions
+   *  and a button per kept version to serve it again. */
+  async function storedEffects(m, box) {
+    box.textContent = "";
+    box.append(h("h3", {}, "Stored effects (added to every simulation of this machine)"));
+    if (!(await machineRecord(m)).effects) {
+      box.append(h("p", { class: "none" }, "Stored effects: none yet. Accept them from a gap diagnosis (motion): contour error, compensated programs and the next diagnosis then include them."));
+      return;
+    }
+    const base = `/v1/machines/${enc(m)}/effects`;
+    const [cur, v] = await Promise.all([api("GET", base), api("GET", `${base}/versions`)]);
+    box.append(h("p", { class: "note" }, `Stored effects, version ${cur.version}${cur.source ? " (from " + cur.source + ")" : ""}.`),
+      table(["effect", "parameters"], cur.effects.map((e) => [e.effect, paramText(e.params)])));
+    box.append(h("h3", {}, "Versions"), table(["version", "saved", "served"], v.versions.map((x) => {
+      const b = h("button", { class: "rollback" }, "serve this version");
+      b.addEventListener("click", async (e) => {
+        e.preventDefault();
+        document.body.dataset.state = "loading";
+        await api("POST", `${base}/rollback`, { version: x.version });
+        await storedEffects(m, box);
+        document.body.dataset.state = "ready";
+      });
+      return [x.version, (x.created_at || "").replace("T", " ").slice(0, 19), x.version === v.current ? "served now" : b];
+    })));
   }
 
   // ── machines ───────────────────────────────────────────────────────────────────────
@@ -46,6 +77,9 @@
     main.append(h("h3", {}, `Servo models (kinematics ${def.kinematics})`),
       table(["axis", "kv (1/s)", "kff", "kp_v (1/s)", "ti_v (s)", "tc (s)"], Object.keys(axes).map((a) => [
         a, ...["kv", "kff", "kp_v", "ti_v", "tc"].map((k) => (axes[a][k] === undefined ? "–" : axes[a][k]))])));
+    const effectsBox = h("div");
+    main.append(effectsBox);
+    await storedEffects(m, effectsBox);
     main.append(h("h3", {}, "Surfaces"));
     if (!surfaces.length) main.append(h("p", { class: "note" }, "No surface on this machine."));
     else main.append(table(["surface", "grid (nu × nv)", "tool radius", "measurements"], surfaces.map((s) => [

@@ -86,12 +86,18 @@ async fn get_machine(
 }
 
 /// Every machine with its definition and what it has (`volumetric_map`: whether
-/// `GET .../volumetric-map` answers a map), so that a client asks only for what exists.
+/// `GET .../volumetric-map` answers a map; `effects`: whether `GET .../effects` answers
+/// stored effects), so that a client asks only for what exists.
 async fn list_machines(State(state): State<AppState>) -> ApiResult<ApiJson<Value>> {
     let with_map = state
         .store
         .models()
         .machines_with(crate::api::volumetric::MODEL_KIND)
+        .await?;
+    let with_effects = state
+        .store
+        .models()
+        .machines_with(crate::api::effects::MODEL_KIND)
         .await?;
     let machines: Vec<Value> = state
         .store
@@ -101,6 +107,7 @@ async fn list_machines(State(state): State<AppState>) -> ApiResult<ApiJson<Value
         .map(|m| {
             json!({
                 "volumetric_map": with_map.contains(&m.id),
+                "effects": with_effects.contains(&m.id),
                 "id": m.id,
                 "name": m.definition.get("name"),
                 "kinematics": m.definition.get("kinematics"),

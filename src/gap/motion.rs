@@ -508,7 +508,7 @@ pub fn diagnose_motion_structured(
         held_stored,
         held_left,
         noise,
-        n * dims,
+        n_observed * dims,
         !steps.is_empty(),
         opts.min_explained,
         opts.min_excess_noise,

@@ -280,3 +280,42 @@ fn diagnosis_is_bit_identical_on_one_thread_two_or_beside_another() {
     });
     assert!(a == one && b == one, "a diagnosis beside another differs");
 }
+
+/// Issue 40: a log that observes only some grid instants (125 Hz and 10 Hz loggers on the
+/// 1 kHz grid) is judged against the noise of the instants it observed. A straightness error
+/// (out of the library) well above the noise is `unexplained` at every rate; counting every
+/// grid instant in the noise floor made it 8x and 100x too high and steered sparse logs away
+/// from that verdict.
+#[test]
+fn a_sparse_log_is_judged_against_the_noise_of_its_own_samples() {
+    let servo = servo();
+    let cmd = circle(1.0);
+    let mut rng = rand::rngs::StdRng::seed_from_u64(11);
+    let truth = Truth::Straightness(4e-5, 0.0);
+    let meas = measure(&servo, &truth, &cmd, 0.001, 0.0003, &mut rng);
+    let main = MotionBlock {
+        commanded: cmd,
+        measured: meas,
+    };
+    let n = main.commanded[0].len();
+    for every in [1, 8, 100] {
+        let observed: Vec<f64> = (0..n)
+            .map(|i| if i % every == 0 { 1.0 } else { 0.0 })
+            .collect();
+        let opts = MotionOptions {
+            observed: Some(observed),
+            ..MotionOptions::default()
+        };
+        let d = diagnose_motion(&names(), &servo, 0.001, &main, None, &opts).unwrap();
+        assert_eq!(
+            d.verdict,
+            Effect::Unexplained,
+            "one sample in {every}: {:?}, left {:?}",
+            d.steps
+                .iter()
+                .map(|s| s.fitted.effect())
+                .collect::<Vec<_>>(),
+            d.unexplained.heldout_share
+        );
+    }
+}
