@@ -16,8 +16,6 @@
 //! `unexplained`. Thermal drift is exempt as the verdict: it is a function of the time since
 //! a warm-up the service cannot see, so a block recorded later starts from an unknown state.
 
-use crate::gap::motion::noise_sigma;
-
 /// What the verdict names.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Outcome {
@@ -114,6 +112,41 @@ pub fn judge(
         Outcome::None
     };
     (outcome, share)
+}
+
+/// Noise standard deviation of a residual (mm), per axis then pooled as
+/// `σ̂ = √(mean_k σ̂_k²)`, so that `n·d·σ̂²` is the noise of all `d` axes, `n·Σ σ̂_k²`, even when
+/// one axis is noise-free (a commanded-only Z). Per axis `σ̂_k = 1.4826·median|Δ²r| / √6`:
+/// white noise of variance σ² has second differences of variance 6σ², while the smooth part of
+/// the gap barely contributes; never below half the RMS-based estimate `rms(Δ²r)/√6`
+/// (quantized data make the median of |Δ²r| nearly 0). Bad cases: gaps with many
+/// steps per sample inflate it.
+pub fn noise_sigma(residual: &[Vec<f64>]) -> f64 {
+    let per_axis: Vec<f64> = residual
+        .iter()
+        .filter(|r| r.len() >= 3)
+        .map(|r| axis_noise(r))
+        .collect();
+    if per_axis.is_empty() {
+        return 0.0;
+    }
+    (per_axis.iter().map(|s| s * s).sum::<f64>() / per_axis.len() as f64).sqrt()
+}
+
+/// [`noise_sigma`] of one axis' residual (at least 3 samples), mm.
+fn axis_noise(r: &[f64]) -> f64 {
+    let mut d2: Vec<f64> = r
+        .windows(3)
+        .map(|w| (w[0] - 2.0 * w[1] + w[2]).abs())
+        .collect();
+    let rms = (d2.iter().map(|d| d * d).sum::<f64>() / d2.len() as f64).sqrt() / 6f64.sqrt();
+    let mid = d2.len() / 2;
+    let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
+    let robust = 1.4826 * *m / 6f64.sqrt();
+    // quantized measurements (most second differences exactly or nearly 0) make the median
+    // useless: never report less than half the RMS-based estimate (steps and spikes of a real
+    // gap inflate the RMS one, hence only half of it)
+    robust.max(0.5 * rms)
 }
 
 #[cfg(test)]

@@ -10,6 +10,7 @@ use crate::gap::align::{fill_unobserved, masked_stats, observed_only};
 use crate::gap::effects::{Effect, Fitted};
 use crate::gap::events::{Span, rank_spans};
 use crate::gap::fit::{SimCache, at_bound};
+pub use crate::gap::judge::noise_sigma;
 use crate::gap::judge::{Outcome, judge, validation_left};
 use crate::gap::patterns::{Pattern, patterns};
 use crate::gap::plant::{AxisPlant, stored_simulation};
@@ -204,29 +205,6 @@ pub fn gap_stats(measured: &[Vec<f64>], simulated: &[Vec<f64>]) -> GapStats {
         rms: if n > 0 { (sum / n as f64).sqrt() } else { 0.0 },
         max,
     }
-}
-
-/// Noise standard deviation of a residual (mm): `1.4826·median|Δ²r| / √6` pooled over axes —
-/// white noise of variance σ² has second differences of variance 6σ², while the smooth part of
-/// the gap barely contributes; never below half the RMS-based estimate `rms(Δ²r)/√6`
-/// (quantized data make the median of |Δ²r| nearly 0). Bad cases: gaps with many
-/// steps per sample inflate it.
-pub fn noise_sigma(residual: &[Vec<f64>]) -> f64 {
-    let mut d2: Vec<f64> = residual
-        .iter()
-        .flat_map(|r| r.windows(3).map(|w| (w[0] - 2.0 * w[1] + w[2]).abs()))
-        .collect();
-    if d2.is_empty() {
-        return 0.0;
-    }
-    let rms = (d2.iter().map(|d| d * d).sum::<f64>() / d2.len() as f64).sqrt() / 6f64.sqrt();
-    let mid = d2.len() / 2;
-    let (_, m, _) = d2.select_nth_unstable_by(mid, f64::total_cmp);
-    let robust = 1.4826 * *m / 6f64.sqrt();
-    // quantized measurements (most second differences exactly or nearly 0) make the median
-    // useless: never report less than half the RMS-based estimate (steps and spikes of a real
-    // gap inflate the RMS one, hence only half of it)
-    robust.max(0.5 * rms)
 }
 
 fn check_block(
