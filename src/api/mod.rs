@@ -13,6 +13,7 @@ pub mod contour;
 pub mod dashboard;
 pub mod decomposition;
 pub mod effects;
+pub mod effects_program;
 pub mod error;
 pub mod extract;
 pub mod gap;

@@ -28,9 +28,9 @@ use super::error::Error;
 use super::field::ErrorField;
 use super::paths::SubArc;
 use super::predistort::{
-    MaterialSide, Piece, PredistortOptions, Predistorted, judge, predistort_sided,
+    MaterialSide, ModelFigures, Piece, PredistortOptions, Predistorted, judge, predistort_sided,
 };
-use super::program::{Compensated, MAX_OUTPUT_BLOCKS, compensate_program, line_list};
+use super::program::{Compensated, MAX_OUTPUT_BLOCKS, Offsets, compensate_with_offsets, line_list};
 use crate::motion::gcode::{parse_traced, word_spans};
 
 /// Iterations (Jacobians) the route allows the optimiser (it stops earlier once converged).
@@ -69,14 +69,36 @@ pub fn volumetric_and_contour(
     machine: &crate::motion::Machine,
     opts: &PredistortOptions,
 ) -> Result<(Compensated, Predistorted), Error> {
-    let v = compensate_program(text, options, field, tolerance_mm)?;
+    corrected_and_contour(
+        text,
+        options,
+        (field, &Offsets::default()),
+        tolerance_mm,
+        machine,
+        opts,
+    )
+}
+
+/// [`volumetric_and_contour`] with the offsets `correct.1` (backlash, drift) corrected in
+/// the first pass too ([`compensate_with_offsets`]: offsets along each axis' direction with
+/// take-up moves at reversals, which the contour pass writes as they are, and the drift at
+/// each line's time). `machine` is then the servo model without the corrected effects.
+pub fn corrected_and_contour(
+    text: &str,
+    options: &ReadOptions,
+    correct: (&dyn ErrorField, &Offsets),
+    tolerance_mm: f64,
+    machine: &crate::motion::Machine,
+    opts: &PredistortOptions,
+) -> Result<(Compensated, Predistorted), Error> {
+    let v = compensate_with_offsets(text, options, correct.0, tolerance_mm, correct.1)?;
     let named = original_words(text, &v.source_lines);
     let pass = contour_pass(
         &v.gcode,
         options,
         machine,
         opts,
-        Some((&v.source_lines, &named)),
+        Some((&v.source_lines, &named, &v.takeups)),
     )?;
     let mut out = pass.out;
     let mut warnings = v.warnings;
@@ -106,6 +128,11 @@ fn original_words(text: &str, source_lines: &[usize]) -> Vec<[bool; 3]> {
         .collect()
 }
 
+/// What the contour pass needs of a first pass' text: for each of its lines (index line − 1)
+/// the source line the notes name and the axes the original names there
+/// ([`original_words`]), and its backlash take-up lines (1-based, ascending).
+type FirstPass<'a> = (&'a [usize], &'a [[bool; 3]], &'a [usize]);
+
 /// One contour pass: the program (warnings: the pass's own notes), the reader's warnings on
 /// `text`, and the figures.
 struct Pass {
@@ -126,6 +153,8 @@ enum Kind {
     /// A feed move under G41/G42, one that carries G40/G41/G42, or the move after it:
     /// kept whole.
     CutterComp,
+    /// A backlash take-up move of the first pass: kept.
+    TakeUp,
     /// A feed move the pre-distortion may change.
     Feed,
 }
@@ -145,81 +174,23 @@ fn contour_pass(
     options: &ReadOptions,
     machine: &crate::motion::Machine,
     opts: &PredistortOptions,
-    volumetric: Option<(&[usize], &[[bool; 3]])>,
+    volumetric: Option<FirstPass<'_>>,
 ) -> Result<Pass, Error> {
     let src = |l: usize| {
         volumetric
-            .and_then(|(m, _)| m.get(l.wrapping_sub(1)).copied())
+            .and_then(|(m, _, _)| m.get(l.wrapping_sub(1)).copied())
             .unwrap_or(l)
     };
-    let (program, reader_warnings, frames) = parse_traced(text, options)?;
-    let (_, control, _) = parse_modes(text, options)?;
+    let Classified {
+        program,
+        reader_warnings,
+        frames,
+        control,
+        kinds,
+        sides,
+        placed,
+    } = classify(text, options, volumetric.map_or(&[][..], |v| v.2))?;
     let raw_lines: Vec<&str> = text.lines().collect();
-    let mut by_line: Vec<Vec<&Block>> = vec![Vec::new(); raw_lines.len() + 1];
-    for b in &program.blocks {
-        if let Some(v) = by_line.get_mut(b.line) {
-            v.push(b);
-        }
-    }
-    // What each line is, from the words (the emitter's own reading) and the blocks.
-    let mut probe = Emitter::new();
-    // The material side each line's moves cut on (G41: tool left, material right; G42:
-    // material left; G40 or neither: unknown), modal from line to line.
-    let mut comp: Option<MaterialSide> = None;
-    let mut sides: Vec<Option<MaterialSide>> = vec![None; raw_lines.len() + 1];
-    let mut after_comp = false;
-    // The axes the written program can state at the end of each line: those the line names,
-    // and those an earlier line placed absolutely (the emitter writes no word for an axis
-    // whose position the program never gave: the machine may be anywhere on it). A corner
-    // in a level with an unplaced axis is not moved, only slowed.
-    let mut known = [false; 3];
-    let mut placed: Vec<[bool; 3]> = vec![[false; 3]; raw_lines.len() + 1];
-    let kinds: Vec<Kind> = std::iter::once(Kind::Other)
-        .chain(raw_lines.iter().enumerate().map(|(idx, raw)| {
-            let info = probe.begin(raw);
-            if let Some(f) = frames.get(idx).filter(|f| f.line == idx + 1) {
-                let relative = f.incremental && !info.machine_move;
-                for k in 0..3 {
-                    placed[idx + 1][k] = info.named[k] || known[k] || relative;
-                    known[k] = f.known[k] && (known[k] || (info.named[k] && !relative));
-                }
-            }
-            let mut comp_word = false;
-            for s in info.spans.iter().filter(|s| s.letter == 'G') {
-                match (s.value * 10.0).round() as i64 {
-                    400 => comp = None,
-                    410 => comp = Some(MaterialSide::Right),
-                    420 => comp = Some(MaterialSide::Left),
-                    _ => continue,
-                }
-                comp_word = true;
-            }
-            sides[idx + 1] = comp;
-            let blocks = &by_line[idx + 1];
-            let kind = if info.machine_move || info.dwell || blocks.is_empty() {
-                Kind::Other
-            } else if info.is_hole() {
-                Kind::Hole
-            } else if blocks
-                .iter()
-                .all(|b| b.motion == Motion::Linear && b.feed == Feed::Rapid)
-            {
-                Kind::Rapid
-            } else if comp_word || after_comp || comp.is_some() {
-                // Under G41/G42 the controller offsets each move by the tool radius: a
-                // piece shorter than the radius at an inside corner cannot be reached
-                // (LinuxCNC refuses the program), so those moves stay whole too.
-                Kind::CutterComp
-            } else {
-                Kind::Feed
-            };
-            // The first move after a G40/G41/G42 move is kept whole too.
-            if info.moves {
-                after_comp = comp_word;
-            }
-            kind
-        }))
-        .collect();
     let keep = |l: usize| kinds.get(l).is_none_or(|k| *k != Kind::Feed);
     let side = |l: usize| sides.get(l).copied().flatten();
     let placed = |l: usize| placed.get(l).copied().unwrap_or([false; 3]);
@@ -245,7 +216,7 @@ fn contour_pass(
                 (Some(pieces), Some(f)) => plan_of(pieces, if f.inch { 25.4 } else { 1.0 }),
                 _ => LinePlan::Keep,
             };
-            if let Some((_, named)) = volumetric.filter(|_| plan != LinePlan::Keep) {
+            if let Some((_, named, _)) = volumetric.filter(|_| plan != LinePlan::Keep) {
                 let own = named.get(idx).copied().unwrap_or([true; 3]);
                 for (k, n) in info.named.iter_mut().enumerate() {
                     *n &= own[k];
@@ -334,11 +305,165 @@ fn contour_pass(
                 max_shift_mm: 0.0,
                 blocks: lines.len(),
                 source_lines: out_lines.into_iter().map(src).collect(),
+                takeups: Vec::new(),
             },
             reader_warnings: reader_warnings.iter().map(|w| w.to_string()).collect(),
             result,
         });
     }
+}
+
+/// The time (s from the program's start) at which `machine`'s interpolation of `text` (read
+/// with `options` and its path-control modes, every `period_s` s) ends each source line
+/// (index: line − 1): the time of its last sample; a line without samples gets the time of
+/// the line before it. The clock of the thermal drift a simulation adds.
+pub fn line_end_times(
+    text: &str,
+    options: &ReadOptions,
+    machine: &crate::motion::Machine,
+    period_s: f64,
+) -> Result<Vec<f64>, Error> {
+    let (program, control, _) = parse_modes(text, options)?;
+    let traj = crate::motion::interpolate_with(
+        &program,
+        &control,
+        machine,
+        period_s,
+        super::predistort::MAX_PERIODS,
+    )?;
+    let mut out = vec![f64::NAN; text.lines().count()];
+    for (t, &l) in traj.t.iter().zip(&traj.line) {
+        if let Some(v) = out.get_mut((l as usize).wrapping_sub(1)) {
+            *v = *t;
+        }
+    }
+    let mut last = 0.0;
+    for v in &mut out {
+        if v.is_nan() {
+            *v = last;
+        }
+        last = *v;
+    }
+    Ok(out)
+}
+
+/// The figures of `written` (a program's text) against the *original* path of `text`, both
+/// read with `options`, on the model set of `machine` with every effect it carries: RMS and
+/// max distance of the simulated tool tip to the programmed path (mm) and duration (s) per
+/// model, nominal first, measured as [`contour_program`] measures them. An answer corrected
+/// against part of a machine's effects (the geometric ones in the points, the others in the
+/// servo model) is judged here on the machine with all of them.
+pub fn judge_written(
+    text: &str,
+    options: &ReadOptions,
+    machine: &crate::motion::Machine,
+    opts: &PredistortOptions,
+    written: &str,
+) -> Result<Vec<ModelFigures>, Error> {
+    let c = classify(text, options, &[])?;
+    let keep = |l: usize| c.kinds.get(l).is_none_or(|k| *k != Kind::Feed);
+    let side = |l: usize| c.sides.get(l).copied().flatten();
+    let (w, wc, _) = parse_modes(written, options)?;
+    Ok(judge(
+        machine, &c.program, &c.control, opts, &keep, &side, &w, &wc,
+    )?)
+}
+
+/// A program read for the contour pass: its blocks, the reader's warnings and frames, its
+/// path-control modes, and per line (1-based index) what it is, the material side it cuts
+/// on and the axes the written program can state at its end.
+struct Classified {
+    program: crate::motion::Program,
+    reader_warnings: Vec<crate::motion::gcode::Warning>,
+    frames: Vec<crate::motion::gcode::LineFrame>,
+    control: crate::motion::PathControl,
+    kinds: Vec<Kind>,
+    sides: Vec<Option<MaterialSide>>,
+    placed: Vec<[bool; 3]>,
+}
+
+/// Reads `text` and classes its lines ([`Classified`]); `takeups` are lines (1-based) of
+/// backlash take-up moves, written as they are.
+fn classify(text: &str, options: &ReadOptions, takeups: &[usize]) -> Result<Classified, Error> {
+    let (program, reader_warnings, frames) = parse_traced(text, options)?;
+    let (_, control, _) = parse_modes(text, options)?;
+    let raw_lines: Vec<&str> = text.lines().collect();
+    let mut by_line: Vec<Vec<&Block>> = vec![Vec::new(); raw_lines.len() + 1];
+    for b in &program.blocks {
+        if let Some(v) = by_line.get_mut(b.line) {
+            v.push(b);
+        }
+    }
+    // What each line is, from the words (the emitter's own reading) and the blocks.
+    let mut probe = Emitter::new();
+    // The material side each line's moves cut on (G41: tool left, material right; G42:
+    // material left; G40 or neither: unknown), modal from line to line.
+    let mut comp: Option<MaterialSide> = None;
+    let mut sides: Vec<Option<MaterialSide>> = vec![None; raw_lines.len() + 1];
+    let mut after_comp = false;
+    // The axes the written program can state at the end of each line: those the line names,
+    // and those an earlier line placed absolutely (the emitter writes no word for an axis
+    // whose position the program never gave: the machine may be anywhere on it). A corner
+    // in a level with an unplaced axis is not moved, only slowed.
+    let mut known = [false; 3];
+    let mut placed: Vec<[bool; 3]> = vec![[false; 3]; raw_lines.len() + 1];
+    let kinds: Vec<Kind> = std::iter::once(Kind::Other)
+        .chain(raw_lines.iter().enumerate().map(|(idx, raw)| {
+            let info = probe.begin(raw);
+            if let Some(f) = frames.get(idx).filter(|f| f.line == idx + 1) {
+                let relative = f.incremental && !info.machine_move;
+                for k in 0..3 {
+                    placed[idx + 1][k] = info.named[k] || known[k] || relative;
+                    known[k] = f.known[k] && (known[k] || (info.named[k] && !relative));
+                }
+            }
+            let mut comp_word = false;
+            for s in info.spans.iter().filter(|s| s.letter == 'G') {
+                match (s.value * 10.0).round() as i64 {
+                    400 => comp = None,
+                    410 => comp = Some(MaterialSide::Right),
+                    420 => comp = Some(MaterialSide::Left),
+                    _ => continue,
+                }
+                comp_word = true;
+            }
+            sides[idx + 1] = comp;
+            let blocks = &by_line[idx + 1];
+            let kind = if info.machine_move || info.dwell || blocks.is_empty() {
+                Kind::Other
+            } else if takeups.binary_search(&(idx + 1)).is_ok() {
+                Kind::TakeUp
+            } else if info.is_hole() {
+                Kind::Hole
+            } else if blocks
+                .iter()
+                .all(|b| b.motion == Motion::Linear && b.feed == Feed::Rapid)
+            {
+                Kind::Rapid
+            } else if comp_word || after_comp || comp.is_some() {
+                // Under G41/G42 the controller offsets each move by the tool radius: a
+                // piece shorter than the radius at an inside corner cannot be reached
+                // (LinuxCNC refuses the program), so those moves stay whole too.
+                Kind::CutterComp
+            } else {
+                Kind::Feed
+            };
+            // The first move after a G40/G41/G42 move is kept whole too.
+            if info.moves {
+                after_comp = comp_word;
+            }
+            kind
+        }))
+        .collect();
+    Ok(Classified {
+        program,
+        reader_warnings,
+        frames,
+        control,
+        kinds,
+        sides,
+        placed,
+    })
 }
 
 /// The emitter's plan for a line's pieces (feeds converted to program units by `unit`, mm

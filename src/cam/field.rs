@@ -25,3 +25,18 @@ impl ErrorField for VolumetricMap {
         self.bounds.contains(p)
     }
 }
+
+/// Two error fields added (a volumetric map and the geometric effects); a point is inside
+/// where it is inside both.
+pub struct SumField<'a>(pub &'a dyn ErrorField, pub &'a dyn ErrorField);
+
+impl ErrorField for SumField<'_> {
+    fn error_at(&self, p: [f64; 3]) -> [f64; 3] {
+        let (a, b) = (self.0.error_at(p), self.1.error_at(p));
+        [a[0] + b[0], a[1] + b[1], a[2] + b[2]]
+    }
+
+    fn contains(&self, p: [f64; 3]) -> bool {
+        self.0.contains(p) && self.1.contains(p)
+    }
+}

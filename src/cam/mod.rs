@@ -18,13 +18,17 @@ pub(crate) mod paths;
 mod points;
 pub mod predistort;
 pub(crate) mod program;
+pub mod reversals;
 #[cfg(test)]
 mod tests;
 
-pub use contour::{MAX_ITERATIONS, contour_program, volumetric_and_contour};
+pub use contour::{
+    MAX_ITERATIONS, contour_program, corrected_and_contour, judge_written, line_end_times,
+    volumetric_and_contour,
+};
 pub use emit::{Emitter, LineInfo, LinePlan, decimals, format_number, rewrite, rounding_mm};
 pub use error::Error;
-pub use field::ErrorField;
+pub use field::{ErrorField, SumField};
 pub use paths::{Shifter, SubArc, arc_pieces, arc_point, linear_points, sub_arc};
 pub use points::{CompensatedPoints, compensate_points, points_from_csv, points_to_csv};
 pub use predistort::{
@@ -33,5 +37,5 @@ pub use predistort::{
 };
 pub use program::{
     Compensated, DEFAULT_TOLERANCE_MM, MAX_OUTPUT_BLOCKS, MAX_TOLERANCE_MM, MIN_TOLERANCE_MM,
-    check_tolerance, compensate_program,
+    Offsets, check_tolerance, compensate_program, compensate_with_offsets,
 };

@@ -36,6 +36,9 @@ const END_STEPS: usize = 20;
 /// outside the field's box.
 pub struct Shifter<'a> {
     field: &'a dyn ErrorField,
+    /// Added to every compensated point, mm: the backlash offset b/2·d of the stretch being
+    /// written (module `program`'s reversals; zero without backlash).
+    pub bias: [f64; 3],
     /// Largest |e| applied to a written point, mm.
     pub max_shift_mm: f64,
     /// Lines with a point outside the field's box (each once, in order).
@@ -47,14 +50,15 @@ impl<'a> Shifter<'a> {
     pub fn new(field: &'a dyn ErrorField) -> Self {
         Shifter {
             field,
+            bias: [0.0; 3],
             max_shift_mm: 0.0,
             out_of_box: Vec::new(),
         }
     }
 
-    /// e(p) (mm) of a point written for `line`, recorded.
+    /// e(p) − bias (mm) of a point written for `line`, recorded.
     pub fn error(&mut self, line: usize, p: [f64; 3]) -> [f64; 3] {
-        let e = self.field.error_at(p);
+        let e = sub(self.field.error_at(p), self.bias);
         self.max_shift_mm = self.max_shift_mm.max(norm(e));
         if !self.field.contains(p) && self.out_of_box.last() != Some(&line) {
             self.out_of_box.push(line);
@@ -62,25 +66,36 @@ impl<'a> Shifter<'a> {
         e
     }
 
-    /// p − e(p) (mm) of a point written for `line`, recorded.
+    /// p − e(p) + bias (mm) of a point written for `line`, recorded.
     pub fn compensate(&mut self, line: usize, p: [f64; 3]) -> [f64; 3] {
         sub(p, self.error(line, p))
     }
 
-    /// p − e(p) (mm), not recorded (for checks).
+    /// p − e(p) + bias (mm), not recorded (for checks).
     pub fn comp(&self, p: [f64; 3]) -> [f64; 3] {
-        sub(p, self.field.error_at(p))
+        add(sub(p, self.field.error_at(p)), self.bias)
     }
 }
 
-/// Ends (parameters in (0, 1], the last 1) of the greedy pieces of [0, 1] under `passes`
-/// (module docs); `whole` asks for one piece whatever the check says.
-fn greedy(passes: &dyn Fn(f64, f64) -> bool, first_pieces: usize, whole: bool) -> Vec<f64> {
+/// Ends (parameters in (t0, t1], the last t1) of the greedy pieces of [t0, t1] under
+/// `passes` (module docs), split first into `first_pieces` equal parts; `whole` asks for
+/// those parts whatever the check says.
+fn greedy(
+    passes: &dyn Fn(f64, f64) -> bool,
+    first_pieces: usize,
+    (mut t0, t1): (f64, f64),
+    whole: bool,
+) -> Vec<f64> {
     let mut ends = Vec::new();
-    let mut t0 = 0.0;
     // A block that must stay whole, or that is split at fixed points first (a full circle).
     let stops: Vec<f64> = (1..=first_pieces)
-        .map(|k| k as f64 / first_pieces as f64)
+        .map(|k| {
+            if k == first_pieces {
+                t1
+            } else {
+                t0 + (t1 - t0) * k as f64 / first_pieces as f64
+            }
+        })
         .collect();
     for &stop in &stops {
         while t0 < stop {
@@ -128,10 +143,52 @@ pub fn linear_points(
             norm(sub(sh.comp(x(t0 + (t1 - t0) * f)), chord)) <= tol_mm
         })
     };
-    let ends = greedy(&passes, 1, whole);
+    let ends = greedy(&passes, 1, (0.0, 1.0), whole);
     ends.iter()
         .map(|&t| sh.compensate(line, if t == 1.0 { end } else { x(t) }))
         .collect()
+}
+
+/// Parameters t in (0, 1) of the arc `block` (plane, centre, sweep; see [`arc_point`]) where
+/// one of its plane's axes reverses (its extreme points: the angle a multiple of π for the
+/// first axis, of π/2 but not π for the second), in order.
+pub fn arc_reversals(plane: Plane, block: &Block, center: [f64; 3], sweep_rad: f64) -> Vec<f64> {
+    let (p0, p1, _) = plane.axes();
+    let s = block.start.xyz;
+    let a0 = (s[p1] - center[p1]).atan2(s[p0] - center[p0]);
+    let half = std::f64::consts::FRAC_PI_2;
+    let (lo, hi) = if sweep_rad >= 0.0 {
+        (a0, a0 + sweep_rad)
+    } else {
+        (a0 + sweep_rad, a0)
+    };
+    let mut out: Vec<f64> = ((lo / half).floor() as i64..=(hi / half).ceil() as i64)
+        .map(|k| (k as f64 * half - a0) / sweep_rad)
+        .filter(|t| *t > 1e-9 && *t < 1.0 - 1e-9)
+        .collect();
+    out.sort_by(f64::total_cmp);
+    out
+}
+
+/// Direction (−1, 0, +1) of each axis (X, Y, Z) along the arc `block` between parameters
+/// `t0` and `t1`, where no axis reverses ([`arc_reversals`]): the sign of its velocity at
+/// the middle; along the normal axis, of the helix' rise.
+pub fn arc_directions(
+    plane: Plane,
+    block: &Block,
+    center: [f64; 3],
+    sweep_rad: f64,
+    (t0, t1): (f64, f64),
+) -> [f64; 3] {
+    let (p0, p1, n) = plane.axes();
+    let s = block.start.xyz;
+    let a = (s[p1] - center[p1]).atan2(s[p0] - center[p0]) + sweep_rad * 0.5 * (t0 + t1);
+    let sign = |v: f64| if v.abs() < 1e-12 { 0.0 } else { v.signum() };
+    let mut d = [0.0; 3];
+    d[p0] = sign(-a.sin() * sweep_rad);
+    d[p1] = sign(a.cos() * sweep_rad);
+    d[n] = sign(block.end.xyz[n] - s[n]);
+    d
 }
 
 /// A point of the arc `block` (plane, centre, sweep) at parameter t in [0, 1]: the angle and
@@ -230,9 +287,9 @@ fn off_sub_arc(plane: Plane, a: [f64; 3], arc: &SubArc, q: [f64; 3]) -> f64 {
     radial.hypot(q[n] - helix)
 }
 
-/// The compensated arc `block` as sub-arcs (module docs), each within `tol_mm` of c; one
-/// sub-arc when e is constant (or linear enough) along it, or when `whole` (a full circle:
-/// two).
+/// The compensated arc `block` from parameter `range.0` to `range.1` (the whole arc: 0 to 1)
+/// as sub-arcs (module docs), each within `tol_mm` of c; one sub-arc when e is constant (or
+/// linear enough) along it, or when `whole` (a full circle: two).
 #[allow(clippy::too_many_arguments)]
 pub fn arc_pieces(
     sh: &mut Shifter<'_>,
@@ -243,11 +300,12 @@ pub fn arc_pieces(
     sweep_rad: f64,
     tol_mm: f64,
     whole: bool,
+    range: (f64, f64),
 ) -> Vec<SubArc> {
     let x = |t: f64| arc_point(block, plane, center, sweep_rad, t);
     let fit = |t0: f64, t1: f64| {
         let (c0, c1) = (sh.comp(x(t0)), sh.comp(x(t1)));
-        let hint = sub(center, sh.field.error_at(x(0.5 * (t0 + t1))));
+        let hint = add(sub(center, sh.field.error_at(x(0.5 * (t0 + t1)))), sh.bias);
         sub_arc(plane, c0, c1, hint, sweep_rad * (t1 - t0)).map(|a| (c0, a))
     };
     let passes = |t0: f64, t1: f64| match fit(t0, t1) {
@@ -259,14 +317,15 @@ pub fn arc_pieces(
     };
     // A piece of less than a full turn has one reading from its ends, centre and direction;
     // a full circle (or more) starts as equal pieces of less than a turn.
-    let first = (sweep_rad.abs() / std::f64::consts::TAU + 1e-9).floor() as usize + 1;
-    let ends = greedy(&passes, first, whole);
+    let part = sweep_rad.abs() * (range.1 - range.0);
+    let first = (part / std::f64::consts::TAU + 1e-9).floor() as usize + 1;
+    let ends = greedy(&passes, first, range, whole);
     let mut out = Vec::with_capacity(ends.len());
-    let mut t0 = 0.0;
+    let mut t0 = range.0;
     for &t1 in &ends {
         let end = sh.compensate(line, if t1 == 1.0 { block.end.xyz } else { x(t1) });
         let start = sh.comp(x(t0));
-        let hint = sub(center, sh.field.error_at(x(0.5 * (t0 + t1))));
+        let hint = add(sub(center, sh.field.error_at(x(0.5 * (t0 + t1)))), sh.bias);
         let arc = sub_arc(plane, start, end, hint, sweep_rad * (t1 - t0)).unwrap_or(SubArc {
             end_mm: end,
             centre_mm: hint,

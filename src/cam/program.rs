@@ -17,13 +17,15 @@
 //! queried as its predict route does (outside the box: the nearest point of the box, and a
 //! warning naming the lines).
 
-use super::emit::{Emitter, LineInfo, LinePlan, rounding_mm};
+use super::emit::{Emitter, LineInfo, LinePlan, PathPiece, rounding_mm};
 use super::error::Error;
 use super::field::ErrorField;
-use super::paths::{Shifter, arc_pieces, linear_points};
+use super::paths::{Shifter, arc_directions, arc_pieces, arc_point, arc_reversals, linear_points};
+use super::reversals::Reversals;
 use crate::motion::ReadOptions;
 use crate::motion::gcode::{LineFrame, parse_traced};
 use crate::motion::program::{Block, Feed, Motion};
+use crate::numeric::vec3::{norm, sub};
 
 /// Smallest `tolerance_mm` accepted, mm.
 pub const MIN_TOLERANCE_MM: f64 = 1e-5;
@@ -47,6 +49,9 @@ pub struct Compensated {
     pub blocks: usize,
     /// 1-based source line of every output line.
     pub source_lines: Vec<usize>,
+    /// 1-based output lines that are backlash take-up moves ([`super::reversals`]): a later
+    /// pass writes them as they are.
+    pub takeups: Vec<usize>,
 }
 
 /// Checks `tolerance_mm` against [[`MIN_TOLERANCE_MM`], [`MAX_TOLERANCE_MM`]].
@@ -90,6 +95,31 @@ pub fn compensate_program(
     field: &dyn ErrorField,
     tolerance_mm: f64,
 ) -> Result<Compensated, Error> {
+    compensate_with_offsets(text, options, field, tolerance_mm, &Offsets::default())
+}
+
+/// What a pass corrects besides its error field: effects that are not functions of the
+/// position alone.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Offsets {
+    /// Play per axis X, Y, Z, mm ([`super::reversals`]).
+    pub backlash_mm: [f64; 3],
+    /// Drift (mm, X Y Z) at the end of each source line (index: line − 1), as the machine's
+    /// thermal drift predicts it at the program's time there; every point of a line is
+    /// written −drift further. Empty: none.
+    pub drift_mm: Vec<[f64; 3]>,
+}
+
+/// [`compensate_program`] with `offsets` corrected too: every point offset by b/2 along its
+/// axis' last direction with a take-up move at each reversal ([`super::reversals`]), and by
+/// −drift at its line's time.
+pub fn compensate_with_offsets(
+    text: &str,
+    options: &ReadOptions,
+    field: &dyn ErrorField,
+    tolerance_mm: f64,
+    offsets: &Offsets,
+) -> Result<Compensated, Error> {
     check_tolerance(tolerance_mm)?;
     let (program, reader_warnings, frames) = parse_traced(text, options)?;
     let raw_lines: Vec<&str> = text.lines().collect();
@@ -113,24 +143,32 @@ pub fn compensate_program(
     let mut em = Emitter::new();
     let mut notes = Notes::default();
     let mut whole = WholeMoves::default();
+    let mut rev = Reversals::new(offsets.backlash_mm);
+    let mut takeups = Vec::new();
     for (idx, raw) in raw_lines.iter().enumerate() {
         crate::numeric::stop::check();
         let line = idx + 1;
         let info = em.begin(raw);
         let frame = frames.get(idx).filter(|f| f.line == line);
         let keep_whole = whole.next(&info);
-        let plan = match frame {
+        let (plan, took) = match frame {
             Some(frame) => plan_line(
                 line,
                 &info,
                 frame,
                 &by_line[line],
-                &mut shifter,
+                (
+                    &mut shifter,
+                    &mut rev,
+                    offsets.drift_mm.get(idx).copied().unwrap_or([0.0; 3]),
+                ),
                 (tol, keep_whole),
                 &mut notes,
             ),
-            None => LinePlan::Keep,
+            None => (LinePlan::Keep, Vec::new()),
         };
+        // each piece of a take-up's plan is one line (the first on the source line)
+        takeups.extend(took.into_iter().map(|i| em.len() + 1 + i));
         em.write(line, raw, &info, frame, plan);
         if em.len() > MAX_OUTPUT_BLOCKS {
             return Err(Error::TooLong {
@@ -151,6 +189,7 @@ pub fn compensate_program(
         max_shift_mm: shifter.max_shift_mm,
         blocks: lines.len(),
         source_lines,
+        takeups,
     })
 }
 
@@ -164,6 +203,8 @@ struct Notes {
     holes: Vec<usize>,
     split: Vec<usize>,
     split_arcs: Vec<usize>,
+    takeups: Vec<usize>,
+    backlash_whole: Vec<usize>,
 }
 
 impl Notes {
@@ -203,6 +244,17 @@ impl Notes {
             &self.split_arcs,
             "split into sub-arcs of the same plane and direction: the error varies along the \
              arc by more than tolerance_mm (inserted lines carry no N number)",
+        );
+        say(
+            &self.takeups,
+            "backlash take-up moves inserted where an axis reverses or first moves (the motor \
+             crosses the play while the table stands), and every point after offset by half \
+             the play along the axis' direction (inserted lines carry no N number)",
+        );
+        say(
+            &self.backlash_whole,
+            "kept whole for cutter compensation or not backlash-corrected: no take-up move \
+             inserted, so the play is crossed along the move (arcs: not offset)",
         );
         say(
             out_of_box,
@@ -248,36 +300,37 @@ fn plan_line(
     info: &LineInfo,
     frame: &LineFrame,
     blocks: &[&Block],
-    shifter: &mut Shifter<'_>,
+    (shifter, rev, drift): (&mut Shifter<'_>, &mut Reversals, [f64; 3]),
     (tol, whole): (f64, bool),
     notes: &mut Notes,
-) -> LinePlan {
+) -> (LinePlan, Vec<usize>) {
+    let plan = |p: LinePlan| (p, Vec::new());
     if info.machine_move {
         notes.machine_moves.push(line);
-        return LinePlan::Keep;
+        return plan(LinePlan::Keep);
     }
     if info.dwell || !info.moves {
-        return LinePlan::Keep;
+        return plan(LinePlan::Keep);
     }
     if blocks.is_empty() {
         notes.unplaced.push(line);
-        return LinePlan::Keep;
+        return plan(LinePlan::Keep);
     }
     if blocks.iter().any(|b| b.rtcp) {
         notes.rtcp.push(line);
-        return LinePlan::Keep;
+        return plan(LinePlan::Keep);
     }
     if info.is_hole() {
         if frame.incremental {
             notes.incremental_cycles.push(line);
-            return LinePlan::Keep;
+            return plan(LinePlan::Keep);
         }
         let Some(feed) = blocks
             .iter()
             .find(|b| b.feed != Feed::Rapid && b.motion == Motion::Linear)
         else {
             notes.unplaced.push(line);
-            return LinePlan::Keep;
+            return plan(LinePlan::Keep);
         };
         notes.holes.push(line);
         // The first feed starts at R; the bottom is the deepest feed end (G73/G83 feed in
@@ -288,38 +341,65 @@ fn plan_line(
             .filter(|b| b.feed != Feed::Rapid && b.motion == Motion::Linear)
             .map(|b| b.end.xyz)
             .fold(feed.end.xyz, |a, b| if b[2] < a[2] { b } else { a });
+        // a cycle's moves are not followed for backlash: its points carry the drift alone
+        shifter.bias = sub([0.0; 3], drift);
         let eb = shifter.error(line, bottom);
         let er = shifter.error(line, r_plane);
         let last_z = blocks.last().map(|b| b.end.xyz[2]).unwrap_or(r_plane[2]);
-        return LinePlan::Hole {
+        return plan(LinePlan::Hole {
             xy_mm: [bottom[0] - eb[0], bottom[1] - eb[1]],
             r_z_mm: r_plane[2] - er[2],
             bottom_z_mm: bottom[2] - eb[2],
             at_r_after: (last_z - r_plane[2]).abs() < 1e-9,
-        };
+        });
     }
     let [block] = blocks else {
         notes.unplaced.push(line);
-        return LinePlan::Keep;
+        return plan(LinePlan::Keep);
     };
     let end = block.end.xyz;
+    let start = block.start.xyz;
+    // The drift of this line's time holds for its points, the play's offset as it turns.
+    shifter.bias = sub(rev.bias(), drift);
+    // A take-up smaller than the printed digits cannot be written: its offset still holds.
+    let writable = |a: [f64; 3], b: [f64; 3]| norm(sub(a, b)) > 2.0 * rounding_mm(frame.inch);
     match block.motion {
-        Motion::Dwell { .. } => LinePlan::Keep,
-        Motion::Linear if block.feed == Feed::Rapid => LinePlan::Rapid {
-            end_mm: shifter.compensate(line, end),
-        },
+        Motion::Dwell { .. } => plan(LinePlan::Keep),
+        Motion::Linear if block.feed == Feed::Rapid => {
+            rev.turn(sub(end, start));
+            shifter.bias = sub(rev.bias(), drift);
+            plan(LinePlan::Rapid {
+                end_mm: shifter.compensate(line, end),
+            })
+        }
         Motion::Linear => {
-            let pts = linear_points(shifter, line, block.start.xyz, end, tol, whole);
-            if pts.len() == 1 {
-                LinePlan::Move { end_mm: pts[0] }
-            } else {
+            let before = shifter.comp(start);
+            let turned = rev.turn(sub(end, start));
+            if turned && whole {
+                notes.backlash_whole.push(line);
+            }
+            shifter.bias = sub(rev.bias(), drift);
+            let mut pts = linear_points(shifter, line, start, end, tol, whole);
+            if pts.len() > 1 {
                 notes.split.push(line);
-                let feeds = inverse_time_feeds(block, &pts, shifter.comp(block.start.xyz));
-                LinePlan::Points {
+            }
+            let mut took = Vec::new();
+            let at = shifter.comp(start);
+            if turned && !whole && writable(at, before) {
+                pts.insert(0, shifter.compensate(line, start));
+                took.push(0);
+                notes.takeups.push(line);
+            }
+            if pts.len() == 1 {
+                (LinePlan::Move { end_mm: pts[0] }, took)
+            } else {
+                let feeds = inverse_time_feeds(block, &pts, before);
+                let points = LinePlan::Points {
                     points_mm: pts,
                     feeds,
                     dwells_s: Vec::new(),
-                }
+                };
+                (points, took)
             }
         }
         Motion::Arc {
@@ -327,17 +407,100 @@ fn plan_line(
             center,
             sweep_rad,
         } => {
-            let pieces = arc_pieces(shifter, line, block, plane, center, sweep_rad, tol, whole);
-            if pieces.len() > 1 {
+            // Split where an axis of the plane reverses; each stretch takes its directions
+            // (a take-up move where they change) and is written with their offsets.
+            let cuts = if whole || !rev.any() {
+                if whole && rev.any() {
+                    notes.backlash_whole.push(line);
+                }
+                Vec::new()
+            } else {
+                arc_reversals(plane, block, center, sweep_rad)
+            };
+            let bounds: Vec<f64> = std::iter::once(0.0)
+                .chain(cuts)
+                .chain(std::iter::once(1.0))
+                .collect();
+            let first = shifter.comp(start);
+            let mut pieces = Vec::new();
+            let mut took = Vec::new();
+            let mut split = false;
+            for w in bounds.windows(2) {
+                if !whole {
+                    let before = shifter.comp(arc_point(block, plane, center, sweep_rad, w[0]));
+                    let dirs = arc_directions(plane, block, center, sweep_rad, (w[0], w[1]));
+                    if rev.turn(dirs) {
+                        shifter.bias = sub(rev.bias(), drift);
+                        let p = arc_point(block, plane, center, sweep_rad, w[0]);
+                        if writable(shifter.comp(p), before) {
+                            took.push(pieces.len());
+                            pieces.push(PathPiece::Line(shifter.compensate(line, p)));
+                        }
+                    }
+                }
+                let arcs = arc_pieces(
+                    shifter,
+                    line,
+                    block,
+                    plane,
+                    center,
+                    sweep_rad,
+                    tol,
+                    whole,
+                    (w[0], w[1]),
+                );
+                split |= arcs.len() > 1;
+                pieces.extend(arcs.into_iter().map(PathPiece::Arc));
+            }
+            if split {
                 notes.split_arcs.push(line);
             }
-            let shares: Vec<f64> = pieces.iter().map(|a| a.sweep_rad.abs()).collect();
-            let feeds = inverse_time_shares(block, &shares);
-            LinePlan::Arcs {
-                pieces,
-                plane,
-                feeds,
+            let (p0, p1, _) = plane.axes();
+            let r0 = (start[p0] - center[p0]).hypot(start[p1] - center[p1]);
+            if took.is_empty() {
+                let subs: Vec<_> = pieces
+                    .iter()
+                    .filter_map(|p| match p {
+                        PathPiece::Arc(a) => Some(*a),
+                        PathPiece::Line(_) => None,
+                    })
+                    .collect();
+                let shares: Vec<f64> = subs.iter().map(|a| a.sweep_rad.abs()).collect();
+                let feeds = inverse_time_shares(block, &shares);
+                return (
+                    LinePlan::Arcs {
+                        pieces: subs,
+                        plane,
+                        feeds,
+                    },
+                    took,
+                );
             }
+            notes.takeups.push(line);
+            let mut prev = first;
+            let lengths: Vec<f64> = pieces
+                .iter()
+                .map(|p| match p {
+                    PathPiece::Line(q) => {
+                        let l = norm(sub(*q, prev));
+                        prev = *q;
+                        l
+                    }
+                    PathPiece::Arc(a) => {
+                        prev = a.end_mm;
+                        a.sweep_rad.abs() * r0
+                    }
+                })
+                .collect();
+            let feeds = inverse_time_shares(block, &lengths);
+            (
+                LinePlan::Path {
+                    pieces,
+                    plane,
+                    feeds,
+                },
+                took,
+            )
         }
     }
 }

@@ -490,5 +490,6 @@ fn every_cycle_code_is_a_hole() {
     }
 }
 
+mod backlash;
 mod contour;
 mod invariants;

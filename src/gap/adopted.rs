@@ -13,7 +13,7 @@ use std::collections::BTreeMap;
 use serde::{Deserialize, Serialize};
 
 use crate::gap::Error;
-use crate::gap::effects::{Effect, Fitted};
+use crate::gap::effects::{Effect, Fitted, thermal_basis};
 use crate::gap::plant::AxisPlant;
 use crate::gap::steps::delta;
 use crate::motion::{AddedEffects, AxisModel};
@@ -367,9 +367,183 @@ impl StoredEffects {
             .collect::<Result<_, _>>()?;
         Ok(Self { version, effects })
     }
+
+    /// Whether the set adds nothing.
+    pub fn is_empty(&self) -> bool {
+        self.effects.is_empty()
+    }
+
+    /// The openapi.yaml names of the effects, in the stored order.
+    pub fn names(&self) -> Vec<&'static str> {
+        self.effects.iter().map(|e| e.effect().name()).collect()
+    }
+
+    /// The set split in two of the same version: the effects a program corrects in its
+    /// points (scale, squareness, cyclic error: functions of the axis positions alone, see
+    /// [`StoredEffects::geometric_error_at`]; backlash: of the direction of motion, see
+    /// [`StoredEffects::backlash_mm`]; thermal drift: of the program's time, see
+    /// [`StoredEffects::drift_at`]) and the others (friction, gain: of the motion's
+    /// dynamics).
+    pub fn split_corrected(&self) -> (StoredEffects, StoredEffects) {
+        let (geo, rest) = self.effects.iter().cloned().partition(|a| {
+            a.is_geometric() || matches!(a, Adopted::Backlash(_) | Adopted::Thermal(..))
+        });
+        let version = self.version;
+        (
+            StoredEffects {
+                version,
+                effects: geo,
+            },
+            StoredEffects {
+                version,
+                effects: rest,
+            },
+        )
+    }
+
+    /// The drift (mm, X Y Z) the set's thermal drift adds `t_s` seconds after the start of a
+    /// simulated run: `rate·τ·(1 − e^(−t/τ))`, `rate·t` without τ (the diagnosis' formula,
+    /// [`thermal_basis`]); zero without thermal drift.
+    pub fn drift_at(&self, t_s: f64) -> [f64; 3] {
+        let mut d = [0.0; 3];
+        for a in &self.effects {
+            if let Adopted::Thermal(m, tau) = a {
+                for (l, r) in m {
+                    if let Some(k) = ["X", "Y", "Z"].iter().position(|x| x == l) {
+                        d[k] += r * thermal_basis(t_s, *tau);
+                    }
+                }
+            }
+        }
+        d
+    }
+
+    /// The play (mm) of the set's backlash per axis X, Y, Z (0: none).
+    pub fn backlash_mm(&self) -> [f64; 3] {
+        let mut b = [0.0; 3];
+        for a in &self.effects {
+            if let Adopted::Backlash(m) = a {
+                for (l, (w, _)) in m {
+                    if let Some(k) = ["X", "Y", "Z"].iter().position(|x| x == l) {
+                        b[k] += w;
+                    }
+                }
+            }
+        }
+        b
+    }
+
+    /// The error e(p) (mm) the set's geometric effects add at machine point `p` (X, Y, Z,
+    /// mm) of a machine with axes X, Y, Z: the tool arrives at p + e(p). The diagnosis' own
+    /// formulas ([`Fitted::predict`]: `s·x` for scale, `α·source` for squareness, the sine
+    /// and cosine of `2π·x/pitch` for cyclic error), summed; the set's other effects add
+    /// nothing here.
+    pub fn geometric_error_at(&self, p: [f64; 3]) -> [f64; 3] {
+        let index = |l: &str| ["X", "Y", "Z"].iter().position(|a| *a == l);
+        let mut e = [0.0; 3];
+        for a in self.effects.iter().filter(|a| a.is_geometric()) {
+            let Some((idx, f)) = fitted(a, &index, &|_| 0.0) else {
+                continue;
+            };
+            let base: Vec<Vec<f64>> = idx.iter().map(|&i| vec![p[i]]).collect();
+            let d = delta(&f, &[], &base, &base);
+            for (j, &i) in idx.iter().enumerate() {
+                e[i] += d[j][0];
+            }
+        }
+        e
+    }
+}
+
+impl Adopted {
+    /// The library effect this is.
+    fn effect(&self) -> Effect {
+        match self {
+            Adopted::Friction(_) => Effect::CoulombFriction,
+            Adopted::Backlash(_) => Effect::Backlash,
+            Adopted::Gain(_) => Effect::ServoGainMismatch,
+            Adopted::Squareness(..) => Effect::AxisSquareness,
+            Adopted::Scale(_) => Effect::ScaleError,
+            Adopted::Cyclic(_) => Effect::CyclicError,
+            Adopted::Thermal(..) => Effect::ThermalDrift,
+        }
+    }
+
+    /// A function of the axis positions alone (scale, squareness, cyclic error).
+    fn is_geometric(&self) -> bool {
+        matches!(
+            self,
+            Adopted::Squareness(..) | Adopted::Scale(_) | Adopted::Cyclic(_)
+        )
+    }
 }
 
 /// The columns of `v` at `idx`.
+/// One adopted effect as the diagnosis' [`Fitted`] on the axes it names: (their indices in
+/// the simulation's axes, the effect on those axes only); `None` when none of its axes is
+/// simulated. `index` finds an axis letter; `kv_of` gives an axis' stored gain (1/s), which
+/// a gain given as a ratio multiplies.
+fn fitted(
+    e: &Adopted,
+    index: &dyn Fn(&str) -> Option<usize>,
+    kv_of: &dyn Fn(usize) -> f64,
+) -> Option<(Vec<usize>, Fitted)> {
+    let (idx, f) = match e {
+        Adopted::Friction(m) => {
+            let (i, f): (Vec<usize>, Vec<f64>) =
+                m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
+            (i, Fitted::CoulombFriction { f })
+        }
+        Adopted::Backlash(m) => {
+            let (i, bs): (Vec<usize>, Vec<(f64, f64)>) =
+                m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
+            let (b, start) = bs.into_iter().unzip();
+            (i, Fitted::Backlash { b, start })
+        }
+        Adopted::Gain(m) => {
+            let mut i = Vec::new();
+            let mut kv = Vec::new();
+            for (l, g) in m {
+                let Some(k) = index(l) else { continue };
+                i.push(k);
+                kv.push(match g {
+                    Ok(kv) => *kv,
+                    Err(r) => r * kv_of(k),
+                });
+            }
+            (i, Fitted::ServoGainMismatch { kv })
+        }
+        Adopted::Squareness(t, s, alpha) => {
+            let (Some(t), Some(s)) = (index(t), index(s)) else {
+                return None;
+            };
+            let f = Fitted::AxisSquareness {
+                target: 0,
+                source: 1,
+                alpha: *alpha,
+            };
+            (vec![t, s], f)
+        }
+        Adopted::Scale(m) => {
+            let (i, s) = m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
+            (i, Fitted::ScaleError { s })
+        }
+        Adopted::Cyclic(m) => {
+            let (i, v): (Vec<usize>, Vec<(f64, f64, f64)>) =
+                m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
+            let pitch = v.iter().map(|x| x.0).collect();
+            let sin = v.iter().map(|x| x.1).collect();
+            let cos = v.iter().map(|x| x.2).collect();
+            (i, Fitted::CyclicError { pitch, sin, cos })
+        }
+        Adopted::Thermal(m, tau) => {
+            let (i, rate) = m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
+            (i, Fitted::ThermalDrift { rate, tau: *tau })
+        }
+    };
+    (!idx.is_empty()).then_some((idx, f))
+}
+
 fn pick(v: &[Vec<f64>], idx: &[usize]) -> Vec<Vec<f64>> {
     idx.iter().map(|&i| v[i].clone()).collect()
 }
@@ -398,63 +572,9 @@ impl AddedEffects for StoredEffects {
         };
         let mut out = linear.to_vec();
         for e in &self.effects {
-            // (axis indices, the effect on those axes only)
-            let (idx, f): (Vec<usize>, Fitted) = match e {
-                Adopted::Friction(m) => {
-                    let (i, f): (Vec<usize>, Vec<f64>) =
-                        m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
-                    (i, Fitted::CoulombFriction { f })
-                }
-                Adopted::Backlash(m) => {
-                    let (i, bs): (Vec<usize>, Vec<(f64, f64)>) =
-                        m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
-                    let (b, start) = bs.into_iter().unzip();
-                    (i, Fitted::Backlash { b, start })
-                }
-                Adopted::Gain(m) => {
-                    let mut i = Vec::new();
-                    let mut kv = Vec::new();
-                    for (l, g) in m {
-                        let Some(k) = index(l) else { continue };
-                        i.push(k);
-                        kv.push(match g {
-                            Ok(kv) => *kv,
-                            Err(r) => r * axes[k].servo.kv,
-                        });
-                    }
-                    (i, Fitted::ServoGainMismatch { kv })
-                }
-                Adopted::Squareness(t, s, alpha) => {
-                    let (Some(t), Some(s)) = (index(t), index(s)) else {
-                        continue;
-                    };
-                    let f = Fitted::AxisSquareness {
-                        target: 0,
-                        source: 1,
-                        alpha: *alpha,
-                    };
-                    (vec![t, s], f)
-                }
-                Adopted::Scale(m) => {
-                    let (i, s) = m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
-                    (i, Fitted::ScaleError { s })
-                }
-                Adopted::Cyclic(m) => {
-                    let (i, v): (Vec<usize>, Vec<(f64, f64, f64)>) =
-                        m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
-                    let pitch = v.iter().map(|x| x.0).collect();
-                    let sin = v.iter().map(|x| x.1).collect();
-                    let cos = v.iter().map(|x| x.2).collect();
-                    (i, Fitted::CyclicError { pitch, sin, cos })
-                }
-                Adopted::Thermal(m, tau) => {
-                    let (i, rate) = m.iter().filter_map(|(l, &v)| Some((index(l)?, v))).unzip();
-                    (i, Fitted::ThermalDrift { rate, tau: *tau })
-                }
-            };
-            if idx.is_empty() {
+            let Some((idx, f)) = fitted(e, &index, &|k| axes[k].servo.kv) else {
                 continue;
-            }
+            };
             let p: Vec<AxisPlant> = idx.iter().map(|&i| plant(i)).collect::<Result<_, _>>()?;
             let d = delta(&f, &p, &pick(commanded, &idx), &pick(linear, &idx));
             // a squareness displaces its target only: the source column's Δ is zero

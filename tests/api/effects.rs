@@ -171,3 +171,191 @@ async fn stored_versioned_and_simulated(app: TestApp) {
     assert_eq!(after["actual"], plain["actual"]);
 }
 on_both_backends!(stored_versioned_and_simulated);
+
+/// A finishing contour well off machine zero: a lead-in, a straight, a half circle, a
+/// straight back and a side that reverses Y, at 2 m/min.
+pub(crate) const FINISH: &str = "G21 G90 G17 G94\nG0 X100 Y40\nG1 X100 Y50 F2000\nG1 X160 Y50\n\
+                      G3 X160 Y90 I0 J20\nG1 X100 Y90\nG1 X100 Y50\nM30\n";
+
+/// Scale of X and Y, squareness of Y on X (the geometric effects) and 10 µm of backlash.
+const SCALE_X: f64 = 600e-6;
+const SCALE_Y: f64 = -400e-6;
+const SQUARENESS: f64 = 3e-4;
+
+/// The tool tip's distance (mm) to FINISH's programmed path, of the samples from the command's
+/// arrival within 0.5 mm of the lead-in's end on: (RMS over samples, max, samples, RMS weighted by the path
+/// length each sample covers).
+pub(crate) fn finish_distance(answer: &Value) -> (f64, f64, usize, f64) {
+    let rows = |k: &str| -> Vec<[f64; 3]> { serde_json::from_value(answer[k].clone()).unwrap() };
+    let (cmd, act) = (rows("commanded"), rows("actual"));
+    // from the lead-in's end on: before it the servo still lags the rapid's approach
+    let start = cmd
+        .iter()
+        .position(|c| (c[0] - 100.0).hypot(c[1] - 50.0) < 0.5)
+        .expect("the lead-in arrives");
+    let seg = |p: [f64; 2], a: [f64; 2], b: [f64; 2]| {
+        let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
+        let t = (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / (dx * dx + dy * dy)).clamp(0.0, 1.0);
+        (p[0] - a[0] - t * dx).hypot(p[1] - a[1] - t * dy)
+    };
+    let dist = |p: [f64; 2]| {
+        let lines = [
+            ([100.0, 40.0], [100.0, 50.0]),
+            ([100.0, 50.0], [160.0, 50.0]),
+            ([160.0, 90.0], [100.0, 90.0]),
+            ([100.0, 90.0], [100.0, 50.0]),
+        ];
+        let arc = if p[0] >= 160.0 {
+            ((p[0] - 160.0).hypot(p[1] - 70.0) - 20.0).abs()
+        } else {
+            f64::INFINITY
+        };
+        lines
+            .iter()
+            .map(|(a, b)| seg(p, *a, *b))
+            .fold(arc, f64::min)
+    };
+    let d: Vec<f64> = act[start..].iter().map(|a| dist([a[0], a[1]])).collect();
+    let rms = (d.iter().map(|v| v * v).sum::<f64>() / d.len() as f64).sqrt();
+    let (mut sw, mut swd) = (0.0, 0.0);
+    for (i, a) in act.iter().enumerate().skip(start + 1) {
+        let w = (a[0] - act[i - 1][0]).hypot(a[1] - act[i - 1][1]);
+        sw += w;
+        swd += w * d[i - start] * d[i - start];
+    }
+    let weighted = (swd / sw.max(1e-300)).sqrt();
+    (
+        rms,
+        d.iter().copied().fold(0.0, f64::max),
+        d.len(),
+        weighted,
+    )
+}
+
+/// Issue 40 item 2: with scale, squareness and backlash stored, the contour answer corrects
+/// the geometric effects in the commanded points (p − e(p), read back by truecut and rs274
+/// with e from the closed forms) and the backlash by offsets and take-up moves; run on the machine with
+/// every effect (contour-error, effects stored) its distance to the programmed path is a
+/// fraction of the program as written and of the same pre-distortion without the effects.
+#[tokio::test(flavor = "multi_thread", worker_threads = 2)]
+async fn geometric_effects_are_corrected_in_the_points() {
+    let app = spawn_app().await;
+    let r = app.put_json("/v1/machines/m", &machine()).await;
+    assert!(r.status().is_success());
+    let set = json!({"effects": [
+        {"effect": "scale_error", "params": {"x_ppm": SCALE_X * 1e6, "y_ppm": SCALE_Y * 1e6}},
+        {"effect": "axis_squareness", "params": {"y_per_x_rad": SQUARENESS}},
+        {"effect": "backlash", "params": {"x_mm": 0.01, "y_mm": 0.01}}
+    ], "source": "test"});
+    let r = app.put_json("/v1/machines/m/effects", &set).await;
+    assert_eq!(r.status(), 201);
+    let answer = |effects: &'static str| {
+        let app = &app;
+        async move {
+            let r = app
+                .post_json(
+                    "/v1/machines/m/compensated-program",
+                    &json!({"gcode": FINISH, "contour": true, "effects": effects}),
+                )
+                .await;
+            assert_eq!(r.status(), 200);
+            r.json::<Value>().await.unwrap()
+        }
+    };
+    let with = answer("stored").await;
+    let without = answer("none").await;
+    let text = with["gcode"].as_str().unwrap();
+    let warnings = with["warnings"].to_string();
+    assert!(
+        warnings.contains("scale_error, axis_squareness, backlash") && warnings.contains("take-up"),
+        "{warnings}"
+    );
+    assert_eq!(with["contour"]["effects_version"], 1);
+
+    // read back by truecut and rs274: every point not pre-distorted at p - e(p) + b/2·d
+    // (the rapid's: X and Y move in +)
+    let e = |p: [f64; 3]| {
+        [
+            SCALE_X * p[0] - 0.005,
+            SCALE_Y * p[1] + SQUARENESS * p[0] - 0.005,
+            0.0,
+        ]
+    };
+    let lines: Vec<usize> = serde_json::from_value(with["source_lines"].clone()).unwrap();
+    let rs = crate::rs274::required();
+    let dir = tempfile::tempdir().unwrap();
+    let asked = crate::valid::Asked {
+        error: Some(&e),
+        contour: true,
+    };
+    let options = truecut::motion::ReadOptions::default();
+    let c = crate::valid::check(
+        "effects",
+        FINISH,
+        &options,
+        &asked,
+        text,
+        &lines,
+        rs.as_deref(),
+        dir.path(),
+    )
+    .unwrap_or_else(|e| panic!("{e}\n--- answer:\n{text}"));
+    println!(
+        "geometric effects: {} points re-read, worst truecut {:.3} µm, rs274 {:?}; feed ends \
+         {:.1} µm from p - e(p) (|e| up to 97 µm)",
+        c.points,
+        c.worst_truecut_mm * 1e3,
+        c.worst_rs274_mm,
+        c.feed_ends_mm * 1e3
+    );
+    if rs.is_some() {
+        assert!(c.worst_rs274_mm.is_ok(), "{:?}", c.worst_rs274_mm);
+    }
+    // the feed ends are p - e(p) up to the contour pass' corner moves
+    assert!(c.feed_ends_mm < 0.025, "{} mm", c.feed_ends_mm);
+
+    // issue 39's invariants hold, an arc's G1 lines being take-ups of at most √2 plays
+    let (read, _) = truecut::motion::gcode::parse_with(text, &options).unwrap();
+    let takeup = |l: usize| {
+        read.blocks
+            .iter()
+            .filter(|b| b.line == l)
+            .all(|b| truecut::numeric::vec3::dist(b.start.xyz, b.end.xyz) <= 0.0143)
+    };
+    crate::compensated::assert_contour_invariants_except(FINISH, &with, &takeup);
+
+    // on the machine: each program simulated with every stored effect
+    let on_machine = |g: String| {
+        let app = &app;
+        async move { contour(app, json!({"gcode": g})).await }
+    };
+    let orig = on_machine(FINISH.to_string()).await;
+    let closed = on_machine(text.to_string()).await;
+    let blind = on_machine(without["gcode"].as_str().unwrap().to_string()).await;
+    let (r0, m0, n0, _) = finish_distance(&orig);
+    let (r1, m1, n1, _) = finish_distance(&closed);
+    let (r2, _, _, _) = finish_distance(&blind);
+    println!(
+        "finishing contour on the machine with its effects: RMS {:.1} µm as written, {:.1} µm \
+         pre-distorted without the effects, {:.1} µm with them ({:.3}x, {:.3}x); max {:.1} -> \
+         {:.1} µm; duration {:.3}x; the route's own RMS ratio {:.3}",
+        r0 * 1e3,
+        r2 * 1e3,
+        r1 * 1e3,
+        r1 / r0,
+        r1 / r2,
+        m0 * 1e3,
+        m1 * 1e3,
+        n1 as f64 / n0 as f64,
+        with["contour"]["compensated_rms_distance_mm"]
+            .as_f64()
+            .unwrap()
+            / with["contour"]["original_rms_distance_mm"]
+                .as_f64()
+                .unwrap()
+    );
+    assert!(r1 <= 0.3 * r0, "{r1} vs {r0}");
+    assert!(r1 <= 0.6 * r2, "{r1} vs {r2}");
+    assert!(m1 <= 0.5 * m0, "{m1} vs {m0}");
+    assert!(n1 as f64 <= 1.15 * n0 as f64);
+}

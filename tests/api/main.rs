@@ -9,6 +9,7 @@
 #[macro_use]
 mod helpers;
 
+mod blind_plant;
 mod bounded;
 mod cam_stop;
 mod cli_client;

@@ -4,5 +4,5 @@
 mod emitter;
 mod text;
 
-pub use emitter::{Emitter, LineInfo, LinePlan};
+pub use emitter::{Emitter, LineInfo, LinePlan, PathPiece};
 pub use text::{decimals, format_number, rewrite, rounding_mm};

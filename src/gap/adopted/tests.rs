@@ -139,6 +139,81 @@ fn an_effect_on_an_axis_not_simulated_is_left_out() {
     assert_eq!(got, vec![vec![0.0, 10.01, 20.02]]);
 }
 
+/// The part of a set a program corrects in its points (scale, squareness, cyclic error,
+/// backlash) is split from the rest; its geometric effects give at a point what the
+/// simulation adds to a linear position there, and its backlash the play per axis.
+#[test]
+fn the_geometric_part_is_split_and_evaluated_at_a_point() {
+    let s = servo(false);
+    let set: EffectSet = serde_json::from_value(serde_json::json!({
+        "effects": [
+            {"effect": "scale_error", "params": {"x_ppm": 600.0, "y_ppm": -300.0}},
+            {"effect": "axis_squareness", "params": {"y_per_x_rad": 2e-4}},
+            {"effect": "cyclic_error", "params": {"z_pitch_mm": 5.0, "z_amplitude_mm": 0.003,
+                "z_phase_rad": 0.4}},
+            {"effect": "backlash", "params": {"x_mm": 0.02}}
+        ]
+    }))
+    .unwrap();
+    let stored = StoredEffects::new(&set, &infos(&["X", "Y", "Z"]), 3).unwrap();
+    let (geo, rest) = stored.split_corrected();
+    assert_eq!(
+        geo.names(),
+        ["scale_error", "axis_squareness", "cyclic_error", "backlash"]
+    );
+    assert!(rest.is_empty());
+    assert_eq!(geo.backlash_mm(), [0.02, 0.0, 0.0]);
+    let play = EffectSet {
+        effects: set.effects[3..].to_vec(),
+        source: None,
+    };
+    let play = StoredEffects::new(&play, &infos(&["X", "Y", "Z"]), 3).unwrap();
+    assert_eq!(play.geometric_error_at([100.0, 50.0, -20.0]), [0.0; 3]);
+    assert_eq!(play.drift_at(100.0), [0.0; 3]);
+    let warm: EffectSet = serde_json::from_value(serde_json::json!({"effects": [
+        {"effect": "thermal_drift", "params": {"y_rate_mm_s": 1e-4, "tau_s": 200.0}}]}))
+    .unwrap();
+    let warm = StoredEffects::new(&warm, &infos(&["X", "Y", "Z"]), 1).unwrap();
+    let (corrected, rest) = warm.split_corrected();
+    assert!(rest.is_empty());
+    let d = corrected.drift_at(200.0)[1];
+    assert!(
+        (d - 1e-4 * 200.0 * (1.0 - (-1.0f64).exp())).abs() < 1e-12,
+        "{d}"
+    );
+    let p = [100.0, 50.0, -20.0];
+    let e = geo.geometric_error_at(p);
+    let z = 0.003 * (std::f64::consts::TAU * -20.0 / 5.0 + 0.4).sin();
+    let want = [600e-6 * 100.0, -300e-6 * 50.0 + 2e-4 * 100.0, z];
+    for k in 0..3 {
+        assert!(
+            (e[k] - want[k]).abs() < 1e-12,
+            "axis {k}: {} vs {}",
+            e[k],
+            want[k]
+        );
+    }
+    // the same as the simulation adds to a linear run standing at p
+    let models: Vec<AxisModel> = ["X", "Y", "Z"]
+        .iter()
+        .map(|n| AxisModel {
+            name: n,
+            servo: &s,
+            structure: None,
+        })
+        .collect();
+    let col: Vec<Vec<f64>> = p.iter().map(|&v| vec![v, v]).collect();
+    let geometric = EffectSet {
+        effects: set.effects[..3].to_vec(),
+        source: None,
+    };
+    let geometric = StoredEffects::new(&geometric, &infos(&["X", "Y", "Z"]), 3).unwrap();
+    let sim = geometric.apply(&models, PERIOD, &col, &col).unwrap();
+    for k in 0..3 {
+        assert!((sim[k][1] - p[k] - e[k]).abs() < 1e-12);
+    }
+}
+
 fn refusal(v: serde_json::Value) -> String {
     let set: EffectSet = serde_json::from_value(serde_json::json!({ "effects": [v] })).unwrap();
     match check(&set, &infos(&["X", "Y", "Z"])) {

@@ -136,6 +136,7 @@ fn each_invariant_check_catches_its_break() {
             warnings: Vec::new(),
             max_shift_mm: 0.0,
             source_lines,
+            takeups: Vec::new(),
         };
         let r = check_case(&a, &c, None, None, setup(), &rs, dir.path(), &table)
             .unwrap_or_else(|e| panic!("{what}: {e}"));

@@ -15,8 +15,12 @@ use super::text::{decimals, format_number, rewrite};
 use super::text::{format_feed, g_times_ten, is_axis, is_centre, motion_style, round_to, spaced};
 
 use crate::cam::paths::SubArc;
+
+mod path;
+
 use crate::motion::gcode::{LineFrame, WordSpan, word_spans};
 use crate::motion::program::Plane;
+pub use path::PathPiece;
 
 /// How one source line is written.
 #[derive(Clone, Debug, PartialEq)]
@@ -44,6 +48,19 @@ pub enum LinePlan {
         /// The sub-arcs in order; the last ends at the block's (compensated) end.
         pieces: Vec<SubArc>,
         /// Arc plane.
+        plane: Plane,
+        /// F word (program units) of each piece under G93 inverse time; `None` keeps the
+        /// source's F.
+        feeds: Option<Vec<f64>>,
+    },
+    /// A G2/G3 line written as sub-arcs (same plane, each turning as its sweep says) with
+    /// straight moves between them (backlash take-ups where an axis of the plane reverses):
+    /// the first piece on the source line, the others on new lines after it, each line's
+    /// motion word written where it changes.
+    Path {
+        /// The pieces in order; the last ends at the block's (compensated) end.
+        pieces: Vec<PathPiece>,
+        /// Plane of the arcs.
         plane: Plane,
         /// F word (program units) of each piece under G93 inverse time; `None` keeps the
         /// source's F.
@@ -238,11 +255,18 @@ impl Emitter {
         let scale = if frame.inch { 25.4 } else { 1.0 };
         let d = decimals(frame.inch);
         let is_points = matches!(plan, LinePlan::Points { .. });
+        // The motion mode a path's last piece leaves (its G word x 1).
+        let last_path = match &plan {
+            LinePlan::Path { pieces, .. } => pieces.last().map(PathPiece::code),
+            _ => None,
+        };
         // The source's F word on this line, and the F the output must write again because
         // points before it ran at another feed than the source's in force.
         let line_feed = info.spans.iter().find(|s| s.letter == 'F').map(|s| s.value);
         let own_feeds = match &plan {
-            LinePlan::Points { feeds, .. } | LinePlan::Arcs { feeds, .. } => feeds.is_some(),
+            LinePlan::Points { feeds, .. }
+            | LinePlan::Arcs { feeds, .. }
+            | LinePlan::Path { feeds, .. } => feeds.is_some(),
             _ => false,
         };
         let restore: Vec<String> = match (line_feed, self.src_feed) {
@@ -299,32 +323,8 @@ impl Emitter {
                     |s: &WordSpan| is_axis(s) || is_centre(s) || (inverse && s.letter == 'F');
                 let sep = if spaced(raw, &info.spans) { " " } else { "" };
                 for (i, arc) in pieces.iter().enumerate() {
-                    let start = self.cmd;
                     let named = if i == 0 { info.named } else { [false; 3] };
-                    let mut words = self.axis_words(arc.end_mm, named, frame);
-                    let (p0, p1, _) = plane.axes();
-                    if r_form {
-                        let rho = (start[p0] - arc.centre_mm[p0])
-                            .hypot(start[p1] - arc.centre_mm[p1])
-                            / scale;
-                        let signed = if arc.sweep_rad.abs() > std::f64::consts::PI {
-                            -rho
-                        } else {
-                            rho
-                        };
-                        words.push(format!("R{}", format_number(signed, d)));
-                    } else {
-                        let mut ks = [p0, p1];
-                        ks.sort_unstable();
-                        for k in ks {
-                            let v = if frame.absolute_centres {
-                                (arc.centre_mm[k] - frame.shift_mm[k]) / scale
-                            } else {
-                                (arc.centre_mm[k] - start[k]) / scale
-                            };
-                            words.push(format!("{}{}", CENTRES[k], format_number(v, d)));
-                        }
-                    }
+                    let mut words = self.arc_words(arc, named, frame, plane, r_form);
                     if let Some(f) = feeds.as_ref().and_then(|f| f.get(i)) {
                         words.extend(self.feed_word(*f, frame.inverse_time));
                     }
@@ -340,6 +340,11 @@ impl Emitter {
                     }
                 }
             }
+            LinePlan::Path {
+                pieces,
+                plane,
+                feeds,
+            } => self.write_path((line, raw), info, frame, (&pieces, plane, feeds), &restore),
             LinePlan::Points {
                 points_mm,
                 feeds,
@@ -422,7 +427,11 @@ impl Emitter {
             }
         }
         if info.moves || info.explicit_motion {
-            self.out_modal = if is_points { Some(10) } else { self.orig_modal };
+            self.out_modal = match last_path {
+                Some(c) => Some(c * 10),
+                None if is_points => Some(10),
+                None => self.orig_modal,
+            };
         }
         self.prev_pose = frame.pose_mm;
     }
