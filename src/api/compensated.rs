@@ -238,6 +238,16 @@ pub struct ModelRatios {
     pub max_ratio: f64,
     /// Duration, returned over original.
     pub duration_ratio: f64,
+    /// The figures behind the ratios (a ratio of a model on which the original already
+    /// follows the path, as kff + 0.1 at kff 0.9 does, compares two nearly-zero figures):
+    /// distance-weighted RMS of the original and the returned program, mm.
+    pub original_rms_distance_mm: f64,
+    /// See `original_rms_distance_mm`.
+    pub compensated_rms_distance_mm: f64,
+    /// Max distance of the original and the returned program, mm.
+    pub original_max_mm: f64,
+    /// See `original_max_mm`.
+    pub compensated_max_mm: f64,
     /// Largest excursion beyond the band (towards the material) where the original stayed
     /// within it, mm (≤ 0: none).
     pub gouge_mm: f64,
@@ -475,6 +485,10 @@ async fn compensated_program(
                         rms_ratio: ratio(m.compensated.rms_distance_mm, m.original.rms_distance_mm),
                         max_ratio: ratio(m.compensated.max_mm, m.original.max_mm),
                         duration_ratio: ratio(m.compensated.duration_s, m.original.duration_s),
+                        original_rms_distance_mm: m.original.rms_distance_mm,
+                        compensated_rms_distance_mm: m.compensated.rms_distance_mm,
+                        original_max_mm: m.original.max_mm,
+                        compensated_max_mm: m.compensated.max_mm,
                         gouge_mm: m.compensated.gouge_mm,
                     })
                     .collect(),

@@ -194,7 +194,10 @@ fn contour_pass(
     let keep = |l: usize| kinds.get(l).is_none_or(|k| *k != Kind::Feed);
     let side = |l: usize| sides.get(l).copied().flatten();
     let placed = |l: usize| placed.get(l).copied().unwrap_or([false; 3]);
-    let mut result = predistort_sided(machine, &program, &control, opts, &keep, &side, &placed)?;
+    let through = |l: usize| kinds.get(l) == Some(&Kind::TakeUp);
+    let mut result = predistort_sided(
+        machine, &program, &control, opts, &keep, &side, &placed, &through,
+    )?;
     // The written answer's band excursion may exceed the optimiser's by the rounding of its
     // points (the servo is linear); beyond that, the program is returned as written.
     let band_noise_mm = super::emit::rounding_mm(frames.iter().any(|f| f.inch));

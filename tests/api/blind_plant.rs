@@ -11,11 +11,13 @@
 //! as written and ≤ 0.6× that of the same pre-distortion without the effects, its max ≤ 0.5×,
 //! its duration ≤ 1.15×, and diagnosing the first run again ≤ 0.3× of the first gap — in at
 //! least 80 % of the machines. The test prints how many machines pass them all; it asserts
-//! what the loop holds today (2026-12-07): diagnosing again ≤ 0.3× of the gap and the loop
-//! closed ≤ 0.8× the RMS as written in 80 % of the machines, never worse than without the
-//! effects, the duration ≤ 1.15×. The RMS and max gates are not met: the contour pass
-//! returns this contour as written (issue 39: it finds no corner change that lowers its
-//! objective), so the corners' servo error, which sets the max, stays.
+//! what the loop holds today (2026-12-08), each in at least 80 % of the machines: diagnosing
+//! again ≤ 0.3× of the gap, the max ≤ 0.5× (the issue's gate), the RMS ≤ 0.5× as written and
+//! no worse than without the effects; and the duration ≤ 1.15× on every machine. The RMS
+//! gates (0.3× as written, 0.6× of blind) are met on one machine of five: what is left is
+//! the diagnosis' sizes (scale fitted about machine zero where the plant's is about a
+//! reference, the two-part drift as one rate, the soft play as a smaller hard one; on one
+//! machine a friction the plant lacks), which the loop then corrects faithfully.
 
 use crate::effects::{FINISH, finish_distance};
 use crate::helpers::*;
@@ -258,7 +260,7 @@ async fn one_machine(app: &TestApp, seed: u64) -> Figures {
 async fn a_blind_plant_is_diagnosed_accepted_and_cut_closer() {
     const MACHINES: u64 = 5;
     let app = spawn_app().await;
-    let (mut passed, mut again, mut closer) = (0, 0, 0);
+    let (mut passed, mut again, mut closer, mut max, mut no_worse) = (0, 0, 0, 0, 0);
     for seed in 1..=MACHINES {
         let f = one_machine(&app, seed).await;
         println!(
@@ -282,11 +284,9 @@ async fn a_blind_plant_is_diagnosed_accepted_and_cut_closer() {
         );
         passed += usize::from(f.passes());
         again += usize::from(f.gap_shrink <= 0.3);
-        closer += usize::from(f.closed.0 <= 0.8 * f.written.0);
-        assert!(
-            f.closed.0 <= f.blind.0 * 1.01,
-            "machine {seed}: worse with the effects"
-        );
+        closer += usize::from(f.closed.0 <= 0.5 * f.written.0);
+        max += usize::from(f.closed.1 <= 0.5 * f.written.1);
+        no_worse += usize::from(f.closed.0 <= f.blind.0);
         assert!(
             f.closed.2 as f64 <= 1.15 * f.written.2 as f64,
             "machine {seed}: slower"
@@ -294,13 +294,18 @@ async fn a_blind_plant_is_diagnosed_accepted_and_cut_closer() {
     }
     println!(
         "blind plant: {passed} of {MACHINES} machines pass every gate of issue 40 (goal: 80 %); \
-         diagnosed again <= 0.3x of the gap: {again}; closed loop <= 0.8x the RMS as written: \
-         {closer}"
+         diagnosed again <= 0.3x of the gap: {again}; closed loop <= 0.5x the RMS as written: \
+         {closer}; max <= 0.5x: {max}; no worse than blind: {no_worse}"
     );
     let most = (0.8 * MACHINES as f64).ceil() as usize;
     assert!(again >= most, "gap again <= 0.3x in {again} of {MACHINES}");
     assert!(
         closer >= most,
-        "closed loop <= 0.8x in {closer} of {MACHINES}"
+        "closed loop <= 0.5x in {closer} of {MACHINES}"
+    );
+    assert!(max >= most, "max <= 0.5x in {max} of {MACHINES}");
+    assert!(
+        no_worse >= most,
+        "no worse than blind in {no_worse} of {MACHINES}"
     );
 }

@@ -5,7 +5,8 @@
 //! **What may change** (module `shape`): at each corner of two cutting blocks, the corner
 //! point (in its XY level) and a slowed stretch on each side (length and feed fraction); at
 //! each G17 arc, its radius (written as three sub-arcs). Nothing else: rapids, canned
-//! cycles, dwells, plunges and every line the caller keeps are written as programmed. Feeds
+//! cycles, dwells, plunges and every line the caller keeps are written as programmed (a
+//! corner whose two blocks a kept backlash take-up separates is slowed, not moved). Feeds
 //! are only lowered, arcs stay arcs, no dwell is added, no Z word is added to a 2-D cut,
 //! and a block becomes at most three.
 //!
@@ -185,6 +186,7 @@ pub fn predistort(
         &|_| false,
         &|_| None,
         &|_| [true; 3],
+        &|_| false,
     )
 }
 
@@ -203,11 +205,14 @@ fn stats(a: &objective::Acc, period_s: f64) -> ErrorStats {
 /// (module docs). Lines for which `keep(line)` holds are written as programmed; `side(line)`
 /// is the material side where G41/G42 say it; `placed(line)` the axes the written program
 /// can state at the end of that line (a corner is moved only where both axes of its level
-/// are). Returns the pieces of the rewritten lines,
+/// are); `through(line)` holds for a kept line a corner may span (a backlash take-up: a
+/// move of the motor alone, written between the two blocks of a corner, which is then
+/// slowed but not moved). Returns the pieces of the rewritten lines,
 /// the figures of the original and the answer on each model (RMS and max distance of the
 /// simulated tool tip to the original path, mm; duration, s), and notes.
 /// Errors: [`Error::Motion`] for programs the motion core refuses, [`Error::Option`] for
 /// options out of range, [`Error::Unsupported`] for rotary axes.
+#[allow(clippy::too_many_arguments)]
 pub fn predistort_sided(
     machine: &Machine,
     program: &Program,
@@ -216,6 +221,7 @@ pub fn predistort_sided(
     keep: &dyn Fn(usize) -> bool,
     side: &dyn Fn(usize) -> Option<MaterialSide>,
     placed: &dyn Fn(usize) -> [bool; 3],
+    through: &dyn Fn(usize) -> bool,
 ) -> Result<Predistorted, Error> {
     opts.check()?;
     if !matches!(machine.kinematics, Kinematics::Xyz) {
@@ -226,7 +232,7 @@ pub fn predistort_sided(
     }
     let path = path::Path::new(program, keep, side);
     let models = model_set(machine, opts.period_s);
-    let obj = objective::Objective::new(
+    let mut obj = objective::Objective::new(
         program,
         control,
         path,
@@ -264,12 +270,16 @@ pub fn predistort_sided(
         program,
         &obj.path,
         machine,
-        (&movable, &placed_xy),
+        (&movable, &placed_xy, &|i: usize| {
+            through(program.blocks[i].line)
+        }),
         &near,
         opts.band_mm,
     );
+    let windows: Vec<std::ops::Range<usize>> = shape.window.iter().map(|w| obj.bins(*w)).collect();
+    obj.set_focus(&windows);
     let layout = solve::Layout {
-        bins: shape.window.iter().map(|w| obj.bins(*w)).collect(),
+        bins: windows,
         rows: shape
             .window
             .iter()

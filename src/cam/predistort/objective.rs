@@ -21,8 +21,15 @@
 //!   and a sample beyond it is a gouge. Where the original went further, the hinge only
 //!   keeps the answer from going further still, and the RMS and max terms judge it.
 //!
-//! W₀, RMS₀ and max₀ are the original's on the same model. The nominal model weighs as
-//! much as all others together. One more residual holds the duration of the nominal run
+//! W₀, RMS₀ and max₀ are the nominal original's (its path weight, distance-weighted RMS
+//! and 8-norm of the distance) over the bins the answer can change (the focus,
+//! [`Objective::set_focus`]: the union of the features' windows); bins outside it hold no
+//! residual. Every model is judged in those units: a model on which the original already
+//! follows the path (kff + 0.1 on a machine at kff 0.9 is a perfect feed-forward) weighs
+//! what the answer costs there in the nominal's units, not as a ratio to its own zero. And
+//! an error no feature can change (the servo still catching up with a rapid at a lead-in's
+//! start) neither sets the scale nor dilutes the relative improvement the optimiser stops
+//! on. The nominal model weighs as much as all others together. One more residual holds the duration of the nominal run
 //! under the duration limit: a hinge starting [`TIME_MARGIN`] below it.
 
 use std::ops::Range;
@@ -80,6 +87,8 @@ pub struct Acc {
     pub m8: Vec<f64>,
     /// Σ w hinge² per bin.
     pub pen: Vec<f64>,
+    /// Σ w per bin (mm).
+    pub wt: Vec<f64>,
     /// Periods per bin (the local time).
     pub time: Vec<f64>,
     /// Largest excursion towards the material and away from it, per bin, mm.
@@ -165,6 +174,10 @@ pub struct Objective<'a> {
     /// The original's run on each model.
     pub base: Vec<Acc>,
     nblocks: usize,
+    /// Bins that hold residuals (all until [`Objective::set_focus`]).
+    focus: Vec<bool>,
+    /// W₀, RMS₀ and the 8-norm max₀ of the nominal original over the focus.
+    scale: (f64, f64, f64),
 }
 
 impl<'a> Objective<'a> {
@@ -194,6 +207,8 @@ impl<'a> Objective<'a> {
             soft_out: vec![0; nb + 1],
             base: Vec::new(),
             nblocks: original.blocks.len(),
+            focus: vec![true; nb],
+            scale: (0.0, 0.0, 0.0),
         };
         let base: Vec<Acc> = (0..o.models.len())
             .map(|k| o.run(k, original))
@@ -207,7 +222,34 @@ impl<'a> Objective<'a> {
             o.soft_out[b + 1] = o.soft_out[b] + usize::from(ex_out > ENVELOPE_MM);
         }
         o.base = base;
+        o.rescale();
         Ok(o)
+    }
+
+    /// Only the bins `windows` cover hold residuals, and the scale (W₀, RMS₀, max₀) is the
+    /// nominal original's over them (module docs).
+    pub fn set_focus(&mut self, windows: &[Range<usize>]) {
+        self.focus = vec![false; self.nb];
+        for w in windows {
+            for f in &mut self.focus[w.clone()] {
+                *f = true;
+            }
+        }
+        self.rescale();
+    }
+
+    /// W₀, RMS₀ and the 8-norm max₀ of the nominal original over the focus.
+    fn rescale(&mut self) {
+        let (mut w, mut sq, mut m8) = (0.0, 0.0, 0.0);
+        if let Some(b0) = self.base.first() {
+            for b in (0..self.nb).filter(|&b| self.focus[b]) {
+                w += b0.wt[b];
+                sq += b0.sq[b];
+                m8 += b0.m8[b];
+            }
+        }
+        let w = w.max(1e-12);
+        self.scale = (w, (sq / w).sqrt(), (m8 / w).powf(0.125));
     }
 
     /// Bins a path-length window (mm) touches, with the hat's neighbour on each side.
@@ -266,6 +308,7 @@ impl<'a> Objective<'a> {
             sq: vec![0.0; nb],
             m8: vec![0.0; nb],
             pen: vec![0.0; nb],
+            wt: vec![0.0; nb],
             time: vec![0.0; nb],
             ex_in: vec![0.0; nb],
             ex_out: vec![0.0; nb],
@@ -336,6 +379,7 @@ impl<'a> Objective<'a> {
             let d2 = d * d;
             let d8 = d2 * d2 * d2 * d2;
             for &(b, h) in &hats {
+                a.wt[b] += h * w;
                 a.sq[b] += h * w * d2;
                 a.m8[b] += h * w * d8;
                 a.ex_in[b] = a.ex_in[b].max(ex_in);
@@ -368,13 +412,13 @@ impl<'a> Objective<'a> {
             .collect::<Result<_, _>>()?;
         let km = self.models.len();
         let mut r = vec![0.0; 3 * km * self.nb + 1];
-        for (k, (run, base)) in runs.iter().zip(&self.base).enumerate() {
+        let (w0, rms0, max0) = self.scale;
+        let rms0 = RMS_TARGET * rms0.max(1e-9);
+        let max4 = (MAX_TARGET * max0.max(1e-9)).powi(4);
+        for (k, run) in runs.iter().enumerate() {
             let omega = if k == 0 { 1.0 } else { 1.0 / (km - 1) as f64 };
             let sw = omega.sqrt();
-            let w0 = base.weight.max(1e-12);
-            let rms0 = RMS_TARGET * base.rms_distance().max(1e-9);
-            let max4 = (MAX_TARGET * base.max.max(1e-9)).powi(4);
-            for b in 0..self.nb {
+            for b in (0..self.nb).filter(|&b| self.focus[b]) {
                 let row = 3 * (k * self.nb + b);
                 r[row] = sw * (run.sq[b] / w0).sqrt() / rms0;
                 r[row + 1] = sw * (run.m8[b] / w0).sqrt() / max4;

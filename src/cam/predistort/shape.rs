@@ -142,6 +142,9 @@ pub struct Near {
     pub inside: Vec<f64>,
 }
 
+/// A predicate on a program's block index.
+pub type BlockTest<'a> = &'a dyn Fn(usize) -> bool;
+
 /// Feed of a block in mm/min (`None` for rapids and inverse time).
 fn feed_of(b: &Block) -> Option<f64> {
     match b.feed {
@@ -154,13 +157,14 @@ impl Shape {
     /// The features of `program`'s blocks for which `movable(block)` holds (cutting,
     /// G94, the only block of its line), on `machine`; a corner at the end of a block for
     /// which `placed_xy(block)` fails (the written program cannot state X or Y there) is
-    /// only slowed. `path` gives the windows, `near` the original's errors; `band_mm` the
+    /// only slowed, and so is a corner across blocks for which `through(block)` holds (a
+    /// backlash take-up between its two blocks, written as it is). `path` gives the windows, `near` the original's errors; `band_mm` the
     /// smallest reach.
     pub fn new(
         program: &Program,
         path: &Path,
         machine: &Machine,
-        (movable, placed_xy): (&dyn Fn(usize) -> bool, &dyn Fn(usize) -> bool),
+        (movable, placed_xy, through): (BlockTest<'_>, BlockTest<'_>, BlockTest<'_>),
         near: &Near,
         band_mm: f64,
     ) -> Shape {
@@ -201,10 +205,14 @@ impl Shape {
             let b = &program.blocks[i];
             let seg = &path.segs[si];
             let f_mm_s = feed_of(b).unwrap_or(0.0) / 60.0;
-            // A corner with the next block.
-            if i + 1 < nb
-                && movable(i + 1)
-                && let Some(sj) = seg_of[i + 1]
+            // A corner with the next block, across take-ups.
+            let mut j = i + 1;
+            while j < nb && through(j) {
+                j += 1;
+            }
+            if j < nb
+                && movable(j)
+                && let Some(sj) = seg_of[j]
             {
                 let next = &path.segs[sj];
                 let u1 = seg.geom.tangent(1.0);
@@ -222,14 +230,15 @@ impl Shape {
                     };
                     let planar = level(&seg.geom).is_some()
                         && level(&seg.geom) == level(&next.geom)
-                        && placed_xy(i);
+                        && placed_xy(i)
+                        && j == i + 1;
                     let reach = if planar {
-                        REACH_FACTOR * near.max_dist[i].max(near.max_dist[i + 1]).max(band_mm)
+                        REACH_FACTOR * near.max_dist[i].max(near.max_dist[j]).max(band_mm)
                     } else {
                         0.0
                     };
                     let lmax = MAX_LENGTH_SHARE * seg.len.min(next.len);
-                    let v = f_mm_s.max(feed_of(&program.blocks[i + 1]).unwrap_or(0.0) / 60.0);
+                    let v = f_mm_s.max(feed_of(&program.blocks[j]).unwrap_or(0.0) / 60.0);
                     let braking = v * v / (2.0 * accel);
                     let l0 = (TRANSITION_TIME_CONSTANTS * tau * v + braking).min(lmax);
                     let s_at = seg.s0 + seg.len;
@@ -253,7 +262,7 @@ impl Shape {
                         (s_at - lmax - braking, s_at + lmax + settle(v)),
                     );
                     sh.end_corner[i] = Some(k);
-                    sh.start_corner[i + 1] = Some(k);
+                    sh.start_corner[j] = Some(k);
                 }
             }
         }

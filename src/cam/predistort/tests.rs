@@ -175,6 +175,7 @@ fn kept_lines_stay_and_plunges_stay_on_their_axis() {
         &|l| l == 4,
         &|_| None,
         &|_| [true; 3],
+        &|_| false,
     )
     .unwrap();
     assert!(!out.lines.contains_key(&4));
@@ -276,4 +277,86 @@ fn sparse_dot_matches_dense() {
     let a = [(1, 2.0), (3, 1.0), (7, -1.0)];
     let b = [(0, 5.0), (3, 4.0), (7, 2.0), (9, 1.0)];
     assert_eq!(solve::dot_sparse(&a, &b), 4.0 - 2.0);
+}
+
+/// A machine at kv 30/s with feed-forward 0.9.
+fn machine_kff09() -> Machine {
+    let ax = json!({"kv": 30.0, "kff": 0.9});
+    Machine::from_json(&json!({"kinematics": "xyz", "axes": {"X": ax, "Y": ax, "Z": ax}})).unwrap()
+}
+
+/// A finishing contour after a rapid: lead-in, straight, half circle, straight back and a
+/// side, two 90° corners, at F2000.
+const FINISH: &str = "G21 G90 G17 G94\nG0 X100 Y40\nG1 X100 Y50 F2000\nG1 X160 Y50\n\
+                      G3 X160 Y90 I0 J20\nG1 X100 Y90\nG1 X100 Y50\n";
+
+/// At kff 0.9 the model set's kff + 0.1 follows the path perfectly: its original error is
+/// zero and was once the scale of its residuals (every change then cost 10⁵⁰ and the answer
+/// was the program as written). The lead-in's catch-up after the rapid, which no feature
+/// can change, no longer sets the scale either: both corners are pre-distorted and the
+/// nominal error falls.
+#[test]
+fn a_model_that_follows_the_path_does_not_freeze_the_answer() {
+    let m = machine_kff09();
+    let p = read(FINISH);
+    let o = PredistortOptions {
+        max_iterations: 40,
+        ..opts()
+    };
+    let out = predistort(&m, &p, &o).unwrap();
+    check_invariants(&p, &out);
+    let perfect = &out.models[4];
+    assert_eq!(perfect.model, "kff +0.1");
+    assert!(perfect.original.max_mm < 1e-9, "{:?}", perfect.original);
+    for l in [3, 4, 6, 7] {
+        assert!(out.lines.contains_key(&l), "line {l}: {:?}", out.notes);
+    }
+    let (a, b) = (out.original, out.compensated);
+    assert!(
+        b.rms_distance_mm < 0.95 * a.rms_distance_mm,
+        "{a:?} -> {b:?}: {:?}",
+        out.notes
+    );
+    assert!(b.duration_s <= DEFAULT_MAX_DURATION_RATIO * a.duration_s);
+}
+
+/// A backlash take-up (a 10 µm Y move written between the two blocks of a corner, kept as
+/// written) does not hide the corner: its two blocks are slowed, the corner point stays.
+#[test]
+fn a_corner_across_a_take_up_is_slowed_not_moved() {
+    let m = machine_kff09();
+    let text = "G21 G90 G17 G94\nG0 X100 Y40\nG1 X100 Y50 F2000\nG1 X160 Y50\nG1 Y49.99\n\
+                G1 X160 Y10\n";
+    let p = read(text);
+    let o = PredistortOptions {
+        max_iterations: 40,
+        ..opts()
+    };
+    let out = predistort_sided(
+        &m,
+        &p,
+        &PathControl::default(),
+        &o,
+        &|l| l == 5,
+        &|_| None,
+        &|_| [true; 3],
+        &|l| l == 5,
+    )
+    .unwrap();
+    check_invariants(&p, &out);
+    assert!(!out.lines.contains_key(&5));
+    let before = out
+        .lines
+        .get(&4)
+        .expect("the block before the take-up is slowed");
+    let after = out.lines.get(&6).expect("the block after it is slowed");
+    let Piece::Line { end, feed_mm_min } = *before.last().unwrap() else {
+        panic!("a line")
+    };
+    assert_eq!(end, [160.0, 50.0, 0.0], "the corner point stays");
+    assert!(feed_mm_min < 2000.0);
+    let Piece::Line { feed_mm_min, .. } = after[0] else {
+        panic!("a line")
+    };
+    assert!(feed_mm_min < 2000.0);
 }
