@@ -181,22 +181,21 @@ fn contour_pass(
             .and_then(|(m, _, _)| m.get(l.wrapping_sub(1)).copied())
             .unwrap_or(l)
     };
+    let c = classify(text, options, volumetric.map_or(&[][..], |v| v.2))?;
     let Classified {
         program,
         reader_warnings,
         frames,
         control,
         kinds,
-        sides,
-        placed,
-    } = classify(text, options, volumetric.map_or(&[][..], |v| v.2))?;
+        ..
+    } = &c;
     let raw_lines: Vec<&str> = text.lines().collect();
-    let keep = |l: usize| kinds.get(l).is_none_or(|k| *k != Kind::Feed);
-    let side = |l: usize| sides.get(l).copied().flatten();
-    let placed = |l: usize| placed.get(l).copied().unwrap_or([false; 3]);
-    let through = |l: usize| kinds.get(l) == Some(&Kind::TakeUp);
+    let (keep, side) = (|l: usize| c.keep(l), |l: usize| c.side(l));
+    let placed = |l: usize| c.placed.get(l).copied().unwrap_or([false; 3]);
+    let through = |l: usize| c.kinds.get(l) == Some(&Kind::TakeUp);
     let mut result = predistort_sided(
-        machine, &program, &control, opts, &keep, &side, &placed, &through,
+        machine, program, control, opts, &keep, &side, &placed, &through,
     )?;
     // The written answer's band excursion may exceed the optimiser's by the rounding of its
     // points (the servo is linear); beyond that, the program is returned as written.
@@ -276,8 +275,8 @@ fn contour_pass(
         let (written, written_control, _) = parse_modes(&gcode, options)?;
         let models = judge(
             machine,
-            &program,
-            &control,
+            program,
+            control,
             opts,
             &keep,
             &side,
@@ -364,8 +363,7 @@ pub fn judge_written(
     written: &str,
 ) -> Result<Vec<ModelFigures>, Error> {
     let c = classify(text, options, &[])?;
-    let keep = |l: usize| c.kinds.get(l).is_none_or(|k| *k != Kind::Feed);
-    let side = |l: usize| c.sides.get(l).copied().flatten();
+    let (keep, side) = (|l: usize| c.keep(l), |l: usize| c.side(l));
     let (w, wc, _) = parse_modes(written, options)?;
     Ok(judge(
         machine, &c.program, &c.control, opts, &keep, &side, &w, &wc,
@@ -383,6 +381,18 @@ struct Classified {
     kinds: Vec<Kind>,
     sides: Vec<Option<MaterialSide>>,
     placed: Vec<[bool; 3]>,
+}
+
+impl Classified {
+    /// Whether line `l` is written as it is (anything but a feed move the pass may rewrite).
+    fn keep(&self, l: usize) -> bool {
+        self.kinds.get(l).is_none_or(|k| *k != Kind::Feed)
+    }
+
+    /// The material side line `l` cuts on, where G41/G42 say it.
+    fn side(&self, l: usize) -> Option<MaterialSide> {
+        self.sides.get(l).copied().flatten()
+    }
 }
 
 /// Reads `text` and classes its lines ([`Classified`]); `takeups` are lines (1-based) of

@@ -377,6 +377,8 @@ pub fn predistort_sided(
             .collect()
     } else {
         if !shape.is_empty() && opts.max_iterations > 0 {
+            // How the optimiser stopped no longer matters: this note says what was returned.
+            notes.retain(|n| !n.starts_with("stopped after"));
             notes.push(format!(
                 "stopped after {iterations} optimiser iterations: no change lowered the contour \
                  error over the model set, so the program is returned as written"
